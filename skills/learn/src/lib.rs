@@ -1,0 +1,1 @@
+//! The learning core: environments, policies on dfdx, PPO, checkpoints.

@@ -1,0 +1,1 @@
+//! Motion-capture clip formats (BVH, ASF/AMC, DeepMimic JSON).
