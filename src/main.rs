@@ -1,9 +1,19 @@
-use mujoco_rs::prelude::*;
-fn main() {
-    let m = MjModel::from_xml_string("<mujoco><worldbody><body><freejoint/><geom size='0.1'/></body></worldbody></mujoco>").unwrap();
-    let mut d = MjData::new(&m);
-    for _ in 0..100 { d.step(); }
-    println!("z={}", d.qpos()[2]);
-    let e = MjModel::from_xml_string("<mujoco><worldbody>\n<body><geom tpe='sphere'/></body></worldbody></mujoco>");
-    println!("{:?}", e.err().map(|e| e.to_string()));
+//! The `repertoire` command line.
+
+mod cli;
+
+use anyhow::Result;
+use clap::Parser;
+
+fn main() -> Result<()> {
+    let args = cli::Cli::parse();
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(if args.verbose { "debug" } else { "info" })),
+        )
+        .with_writer(std::io::stderr)
+        .with_target(false)
+        .init();
+    cli::run(args)
 }

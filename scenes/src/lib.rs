@@ -1,1 +1,30 @@
-//! tmp
+//! Scenes: the scenario file (RON), bodies and props, and the MuJoCo world every skill runs in.
+//!
+//! Data flows one way: a [`ScenarioFile`] is parsed and validated, its body ([`BodyDef`]) and
+//! props are composed into one MJCF document, MuJoCo compiles it into a [`WorldModel`], and any
+//! number of [`World`]s share that model and step in parallel. Nothing here knows about
+//! learning.
+
+pub mod bench;
+pub mod body;
+pub mod compose;
+pub mod error;
+pub mod math;
+pub mod obs;
+pub mod param;
+pub mod scenario;
+pub mod world;
+
+pub use body::{BodyDef, BodyIndex, BodyMap};
+pub use error::{Location, Result, SceneError};
+pub use obs::{Feature, ObservationLayout};
+pub use param::Param;
+pub use scenario::{Prop, Scenario, ScenarioFile};
+pub use world::{Contacts, World, WorldModel, step_parallel};
+
+/// The MuJoCo version this build links against (e.g. "3.17.0").
+pub fn mujoco_version() -> String {
+    // SAFETY: mj_versionString returns a pointer to a static, NUL-terminated string.
+    let version = unsafe { std::ffi::CStr::from_ptr(mujoco_rs::mujoco_c::mj_versionString()) };
+    version.to_string_lossy().into_owned()
+}

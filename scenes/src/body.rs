@@ -1,0 +1,347 @@
+//! Bodies: an MJCF document plus a RON body map that names the parts every skill needs.
+//!
+//! The built-in humanoid and a user's own MJCF go through the same code: the map names the
+//! pelvis, feet, hands, head and the actuated joints in policy order, and [`BodyIndex`] resolves
+//! those names against the compiled model once, so the world never looks names up again.
+
+use crate::error::{Location, Result, SceneError};
+use mujoco_rs::prelude::*;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// Names, in the body's MJCF, of the parts Repertoire needs.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BodyMap {
+    /// The free joint at the root of the body.
+    pub root_joint: String,
+    /// The pelvis body (the free joint's body).
+    pub pelvis: String,
+    /// The upper-body body (chest or torso).
+    pub torso: String,
+    /// The head body.
+    pub head: String,
+    /// Left foot body.
+    pub left_foot: String,
+    /// Right foot body.
+    pub right_foot: String,
+    /// Left hand body.
+    pub left_hand: String,
+    /// Right hand body.
+    pub right_hand: String,
+    /// A site at the eyes, for a head camera.
+    #[serde(default)]
+    pub head_camera: Option<String>,
+    /// Bodies (with their descendants) whose touching the floor is not a fall.
+    pub floor_contact_allowed: Vec<String>,
+    /// Touch sensors under the feet, in observation order.
+    #[serde(default)]
+    pub foot_touch_sensors: Vec<String>,
+    /// Touch sensors on the hands, in observation order.
+    #[serde(default)]
+    pub hand_touch_sensors: Vec<String>,
+    /// Actuated joints in policy order; each is driven by exactly one actuator.
+    pub actuated_joints: Vec<String>,
+}
+
+/// A body ready to be placed in a scene: its MJCF text and its map, with where each came from.
+#[derive(Debug, Clone)]
+pub struct BodyDef {
+    /// The MJCF document of the body alone.
+    pub mjcf: String,
+    /// Where the MJCF came from (for messages).
+    pub mjcf_path: PathBuf,
+    /// The body map.
+    pub map: BodyMap,
+    /// Where the map came from (for messages).
+    pub map_path: PathBuf,
+    /// The map's text (to locate names in messages).
+    pub map_text: String,
+}
+
+const HUMANOID_XML: &str = include_str!("../assets/humanoid.xml");
+const HUMANOID_MAP: &str = include_str!("../assets/humanoid.map.ron");
+
+impl BodyDef {
+    /// Repertoire's built-in humanoid (25 actuated DoF, 1.70 m, about 70 kg).
+    pub fn humanoid() -> Self {
+        let map_path = PathBuf::from("<built-in>/scenes/assets/humanoid.map.ron");
+        let map = parse_map(&map_path, HUMANOID_MAP).expect("the built-in body map is tested");
+        Self {
+            mjcf: HUMANOID_XML.to_string(),
+            mjcf_path: PathBuf::from("<built-in>/scenes/assets/humanoid.xml"),
+            map,
+            map_path,
+            map_text: HUMANOID_MAP.to_string(),
+        }
+    }
+
+    /// Reads a user's MJCF body and its RON map.
+    pub fn load(mjcf_path: &Path, map_path: &Path) -> Result<Self> {
+        let read =
+            |p: &Path| std::fs::read_to_string(p).map_err(|source| SceneError::Io { file: p.to_path_buf(), source });
+        let mjcf = read(mjcf_path)?;
+        let map_text = read(map_path)?;
+        let map = parse_map(map_path, &map_text)?;
+        Ok(Self { mjcf, mjcf_path: mjcf_path.to_path_buf(), map, map_path: map_path.to_path_buf(), map_text })
+    }
+
+    /// Compiles the body alone, so MuJoCo's messages (with line numbers) refer to the user's
+    /// own file, and checks the map against it.
+    pub fn check(&self) -> Result<(MjModel, BodyIndex)> {
+        let model = compile(&self.mjcf, &self.mjcf_path)?;
+        let index = BodyIndex::resolve(&model, self)?;
+        Ok((model, index))
+    }
+
+    /// A stable 64-bit content hash of the MJCF and the map (FNV-1a), recorded by skills so a
+    /// skill refuses a different body.
+    pub fn content_hash(&self) -> String {
+        format!("{:016x}", fnv1a(&[self.mjcf.as_bytes(), b"\0", self.map_text.as_bytes()]))
+    }
+
+    pub(crate) fn map_error(&self, name: &str, message: String) -> SceneError {
+        SceneError::BodyMap { file: self.map_path.clone(), loc: Location::find_quoted(&self.map_text, name), message }
+    }
+}
+
+fn parse_map(path: &Path, text: &str) -> Result<BodyMap> {
+    ron::Options::default()
+        .with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME)
+        .from_str(text)
+        .map_err(|e| SceneError::from_ron(path, e))
+}
+
+/// Compiles an MJCF document, passing MuJoCo's own message on when it refuses.
+pub fn compile(mjcf: &str, file: &Path) -> Result<MjModel> {
+    MjModel::from_xml_string(mjcf).map_err(|e| SceneError::Mjcf {
+        file: file.to_path_buf(),
+        message: e.to_string().trim().trim_start_matches("model load failed: ").to_string(),
+    })
+}
+
+/// FNV-1a over several byte slices.
+pub(crate) fn fnv1a(parts: &[&[u8]]) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for part in parts {
+        for &b in *part {
+            h ^= u64::from(b);
+            h = h.wrapping_mul(0x0100_0000_01b3);
+        }
+    }
+    h
+}
+
+/// One actuated joint, resolved: where it lives in qpos/qvel, its limits and its actuator.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ActuatedJoint {
+    /// The joint's name.
+    pub name: String,
+    /// Index into qpos.
+    pub qpos: usize,
+    /// Index into qvel.
+    pub dof: usize,
+    /// Joint range in radians (or metres for a slide joint).
+    pub range: [f64; 2],
+    /// The actuator (index into ctrl) that drives it.
+    pub actuator: usize,
+    /// The actuator's control range.
+    pub ctrl_range: [f64; 2],
+}
+
+/// The body map resolved to MuJoCo ids in one compiled model.
+#[derive(Debug, Clone)]
+pub struct BodyIndex {
+    /// qpos address of the root free joint (3 position + 4 quaternion values).
+    pub root_qpos: usize,
+    /// qvel address of the root free joint (3 linear + 3 angular values).
+    pub root_dof: usize,
+    /// Body ids.
+    pub pelvis: usize,
+    /// Torso body id.
+    pub torso: usize,
+    /// Head body id.
+    pub head: usize,
+    /// Left and right foot body ids.
+    pub feet: [usize; 2],
+    /// Left and right hand body ids.
+    pub hands: [usize; 2],
+    /// Head camera site id.
+    pub head_camera: Option<usize>,
+    /// Actuated joints in policy order.
+    pub joints: Vec<ActuatedJoint>,
+    /// Per model body: true when it belongs to the character.
+    pub is_character: Vec<bool>,
+    /// Per model body: true when it may touch the floor without it being a fall.
+    pub floor_ok: Vec<bool>,
+    /// Per model body: 0 for the left hand subtree, 1 for the right, none otherwise.
+    pub hand_of: Vec<Option<usize>>,
+    /// sensordata addresses of the foot touch sensors.
+    pub foot_touch: Vec<usize>,
+    /// sensordata addresses of the hand touch sensors.
+    pub hand_touch: Vec<usize>,
+}
+
+impl BodyIndex {
+    /// Resolves `def`'s map in `model` (the body alone or a whole scene built around it).
+    pub fn resolve(model: &MjModel, def: &BodyDef) -> Result<Self> {
+        let map = &def.map;
+        let body = |role: &str, name: &str| {
+            model.name_to_id(MjtObjBase::mjOBJ_BODY, name).ok_or_else(|| {
+                def.map_error(name, format!("{role} `{name}` is not a body in {}", def.mjcf_path.display()))
+            })
+        };
+        let pelvis = body("pelvis", &map.pelvis)?;
+        let torso = body("torso", &map.torso)?;
+        let head = body("head", &map.head)?;
+        let feet = [body("left_foot", &map.left_foot)?, body("right_foot", &map.right_foot)?];
+        let hands = [body("left_hand", &map.left_hand)?, body("right_hand", &map.right_hand)?];
+
+        let root = model.name_to_id(MjtObjBase::mjOBJ_JOINT, &map.root_joint).ok_or_else(|| {
+            def.map_error(
+                &map.root_joint,
+                format!("root_joint `{}` is not a joint in {}", map.root_joint, def.mjcf_path.display()),
+            )
+        })?;
+        if model.jnt_type()[root] != MjtJoint::mjJNT_FREE {
+            return Err(def.map_error(&map.root_joint, format!("root_joint `{}` is not a free joint", map.root_joint)));
+        }
+        if model.jnt_bodyid()[root] as usize != pelvis {
+            return Err(def.map_error(
+                &map.root_joint,
+                format!("root_joint `{}` does not belong to the pelvis `{}`", map.root_joint, map.pelvis),
+            ));
+        }
+
+        let nbody = model.ffi().nbody as usize;
+        let parent: Vec<usize> = model.body_parentid().iter().map(|&p| p as usize).collect();
+        let in_subtree = |b: usize, root: usize| {
+            let mut b = b;
+            loop {
+                if b == root {
+                    return true;
+                }
+                if b == 0 {
+                    return false;
+                }
+                b = parent[b];
+            }
+        };
+        let is_character: Vec<bool> = (0..nbody).map(|b| in_subtree(b, pelvis)).collect();
+        let mut allowed = Vec::new();
+        for name in &map.floor_contact_allowed {
+            allowed.push(body("floor_contact_allowed", name)?);
+        }
+        let floor_ok = (0..nbody).map(|b| allowed.iter().any(|&a| in_subtree(b, a))).collect();
+        let hand_of = (0..nbody).map(|b| (0..2).find(|&side| in_subtree(b, hands[side]))).collect();
+
+        let trn_type = model.actuator_trntype();
+        let trn_id = model.actuator_trnid();
+        let ctrl_range = model.actuator_ctrlrange();
+        let ctrl_limited = model.actuator_ctrllimited();
+        let mut joints = Vec::with_capacity(map.actuated_joints.len());
+        for name in &map.actuated_joints {
+            let j = model.name_to_id(MjtObjBase::mjOBJ_JOINT, name).ok_or_else(|| {
+                def.map_error(name, format!("actuated joint `{name}` is not a joint in {}", def.mjcf_path.display()))
+            })?;
+            if !matches!(model.jnt_type()[j], MjtJoint::mjJNT_HINGE | MjtJoint::mjJNT_SLIDE) {
+                return Err(def.map_error(name, format!("actuated joint `{name}` must be a hinge or slide joint")));
+            }
+            if joints.iter().any(|a: &ActuatedJoint| a.name == *name) {
+                return Err(def.map_error(name, format!("actuated joint `{name}` is listed twice")));
+            }
+            let drivers: Vec<usize> = (0..trn_type.len())
+                .filter(|&a| trn_type[a] == MjtTrn::mjTRN_JOINT && trn_id[a][0] as usize == j)
+                .collect();
+            let [actuator] = drivers[..] else {
+                return Err(def.map_error(
+                    name,
+                    format!("actuated joint `{name}` is driven by {} actuators; it needs exactly one", drivers.len()),
+                ));
+            };
+            let range = if model.jnt_limited()[j] { model.jnt_range()[j] } else { [-f64::INFINITY, f64::INFINITY] };
+            let ctrl = if ctrl_limited[actuator] { ctrl_range[actuator] } else { range };
+            joints.push(ActuatedJoint {
+                name: name.clone(),
+                qpos: model.jnt_qposadr()[j] as usize,
+                dof: model.jnt_dofadr()[j] as usize,
+                range,
+                actuator,
+                ctrl_range: ctrl,
+            });
+        }
+        for a in 0..trn_type.len() {
+            if !joints.iter().any(|j| j.actuator == a) {
+                let name = model.id_to_name(MjtObjBase::mjOBJ_ACTUATOR, a).unwrap_or("(unnamed)");
+                return Err(def.map_error(
+                    &map.actuated_joints.first().cloned().unwrap_or_default(),
+                    format!("actuator `{name}` drives no joint listed in actuated_joints; list its joint or remove it"),
+                ));
+            }
+        }
+
+        let sensor = |name: &str| {
+            let s = model.name_to_id(MjtObjBase::mjOBJ_SENSOR, name).ok_or_else(|| {
+                def.map_error(name, format!("touch sensor `{name}` is not a sensor in {}", def.mjcf_path.display()))
+            })?;
+            Ok::<_, SceneError>(model.sensor_adr()[s] as usize)
+        };
+        let foot_touch = map.foot_touch_sensors.iter().map(|s| sensor(s)).collect::<Result<_>>()?;
+        let hand_touch = map.hand_touch_sensors.iter().map(|s| sensor(s)).collect::<Result<_>>()?;
+        let head_camera = match &map.head_camera {
+            Some(name) => Some(model.name_to_id(MjtObjBase::mjOBJ_SITE, name).ok_or_else(|| {
+                def.map_error(name, format!("head_camera `{name}` is not a site in {}", def.mjcf_path.display()))
+            })?),
+            None => None,
+        };
+
+        Ok(Self {
+            root_qpos: model.jnt_qposadr()[root] as usize,
+            root_dof: model.jnt_dofadr()[root] as usize,
+            pelvis,
+            torso,
+            head,
+            feet,
+            hands,
+            head_camera,
+            joints,
+            is_character,
+            floor_ok,
+            hand_of,
+            foot_touch,
+            hand_touch,
+        })
+    }
+
+    /// Number of actuated joints (the action size of a skill policy).
+    pub fn dof(&self) -> usize {
+        self.joints.len()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn builtin_humanoid_resolves() {
+        let def = BodyDef::humanoid();
+        let (model, index) = def.check().expect("built-in humanoid compiles");
+        assert_eq!(index.dof(), 25);
+        let mass: f64 = model.body_mass().iter().sum();
+        assert!((60.0..=75.0).contains(&mass), "mass {mass}");
+        assert!(index.is_character[index.pelvis] && !index.is_character[0]);
+        assert!(index.floor_ok[index.feet[0]] && !index.floor_ok[index.pelvis]);
+        assert_eq!(index.hand_of[index.hands[1]], Some(1));
+        assert_eq!(index.foot_touch.len(), 2);
+    }
+
+    #[test]
+    fn hash_is_stable_and_content_sensitive() {
+        let a = BodyDef::humanoid();
+        let mut b = a.clone();
+        assert_eq!(a.content_hash(), b.content_hash());
+        b.mjcf.push(' ');
+        assert_ne!(a.content_hash(), b.content_hash());
+    }
+}

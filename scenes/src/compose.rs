@@ -1,0 +1,200 @@
+//! Composes a scene's MJCF: the body's own document plus a floor, a light and the props.
+//!
+//! MJCF lets top-level sections repeat, so the scene is the body's text with one more
+//! `<option>`, `<asset>` and `<worldbody>` appended before its closing `</mujoco>`. The body's
+//! file is kept verbatim: MuJoCo's messages about it keep their line numbers (the body is also
+//! compiled alone first, see [`crate::body::BodyDef::check`]). Prop geoms carry every contact
+//! attribute explicitly, so defaults in a user's body never leak onto them.
+
+use crate::body::BodyDef;
+use crate::error::{Result, SceneError};
+use crate::scenario::{Prop, Scenario};
+use std::f64::consts::PI;
+use std::fmt::Write;
+
+/// Contact attributes every prop geom and the floor carry.
+const CONTACT: &str = r#"condim="3" friction="1 0.05 0.01" contype="1" conaffinity="1" group="0" margin="0" gap="0""#;
+
+/// Number of wall segments of a bucket.
+pub const BUCKET_WALLS: usize = 12;
+
+/// Builds the scene MJCF for `scenario` around `body`.
+pub fn scene_mjcf(body: &BodyDef, scenario: &Scenario) -> Result<String> {
+    let close = body
+        .mjcf
+        .rfind("</mujoco>")
+        .ok_or_else(|| SceneError::Mjcf { file: body.mjcf_path.clone(), message: "no closing </mujoco> tag".into() })?;
+    let mut out = String::with_capacity(body.mjcf.len() + 4096);
+    out.push_str(&body.mjcf[..close]);
+
+    let timestep = 1.0 / f64::from(scenario.rates.physics_hz);
+    let _ = writeln!(out, "  <!-- Added by Repertoire for scenario `{}` -->", xml_escape(&scenario.name));
+    let integrator = if body.mjcf.contains("integrator=") { "" } else { r#" integrator="implicitfast""# };
+    let _ = writeln!(out, r#"  <option timestep="{timestep:.9}"{integrator}/>"#);
+    out.push_str(
+        r#"  <asset>
+    <texture name="repertoire_grid" type="2d" builtin="checker" rgb1="0.32 0.36 0.40" rgb2="0.26 0.30 0.34" width="256" height="256" mark="edge" markrgb="0.45 0.48 0.52"/>
+    <material name="repertoire_grid" texture="repertoire_grid" texrepeat="1 1" texuniform="true" reflectance="0.1"/>
+  </asset>
+  <worldbody>
+    <light name="repertoire_sun" directional="true" pos="0 0 6" dir="0.2 0.3 -1" diffuse="0.8 0.8 0.8"/>
+"#,
+    );
+    let _ = writeln!(
+        out,
+        r#"    <geom name="floor" type="plane" size="0 0 0.05" material="repertoire_grid" rgba="1 1 1 1" {CONTACT}/>"#
+    );
+    for prop in &scenario.props {
+        prop_mjcf(&mut out, prop);
+    }
+    out.push_str("  </worldbody>\n");
+    out.push_str(&body.mjcf[close..]);
+    Ok(out)
+}
+
+/// Quaternion (w x y z) of a heading about +z, in degrees.
+pub fn yaw_quat(yaw_deg: f64) -> [f64; 4] {
+    let h = 0.5 * yaw_deg * PI / 180.0;
+    [h.cos(), 0.0, 0.0, h.sin()]
+}
+
+fn prop_mjcf(out: &mut String, prop: &Prop) {
+    let name = xml_escape(prop.name());
+    let at = prop.pose();
+    let q = yaw_quat(at.yaw_deg.nominal());
+    let (x, y) = (at.x.nominal(), at.y.nominal());
+    let geom = |out: &mut String, part: &str, attrs: String, rgba: &str| {
+        let _ = writeln!(out, r#"      <geom name="{name}/{part}" {attrs} rgba="{rgba}" {CONTACT}/>"#);
+    };
+    match prop {
+        Prop::Chair(c) => {
+            // Built at the tallest seat height; lower heights sink the (static) chair into the floor.
+            let h = c.seat_height.max();
+            let (d, w) = (c.seat_depth, c.seat_width);
+            let _ = writeln!(
+                out,
+                r#"    <body name="{name}" mocap="true" pos="{x} {y} 0" quat="{} {} {} {}">"#,
+                q[0], q[1], q[2], q[3]
+            );
+            let wood = "0.55 0.38 0.22 1";
+            geom(
+                out,
+                "seat",
+                format!(r#"type="box" pos="0 0 {}" size="{} {} 0.025""#, h - 0.025, d / 2.0, w / 2.0),
+                wood,
+            );
+            if c.back_height > 0.0 {
+                geom(
+                    out,
+                    "back",
+                    format!(
+                        r#"type="box" pos="{} 0 {}" size="0.02 {} {}""#,
+                        -d / 2.0 + 0.02,
+                        h + c.back_height / 2.0,
+                        w / 2.0,
+                        c.back_height / 2.0
+                    ),
+                    wood,
+                );
+            }
+            for (i, (sx, sy)) in [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)].into_iter().enumerate() {
+                let (lx, ly) = (sx * (d / 2.0 - 0.03), sy * (w / 2.0 - 0.03));
+                geom(
+                    out,
+                    &format!("leg{i}"),
+                    format!(r#"type="capsule" fromto="{lx} {ly} {} {lx} {ly} 0.02" size="0.02""#, h - 0.05),
+                    wood,
+                );
+            }
+            let _ = writeln!(out, "    </body>");
+        }
+        Prop::Pedestal(p) => {
+            let h = p.height.max();
+            let _ = writeln!(
+                out,
+                r#"    <body name="{name}" mocap="true" pos="{x} {y} 0" quat="{} {} {} {}">"#,
+                q[0], q[1], q[2], q[3]
+            );
+            geom(
+                out,
+                "top",
+                format!(r#"type="box" pos="0 0 {}" size="{} {} {}""#, h / 2.0, p.top.0 / 2.0, p.top.1 / 2.0, h / 2.0),
+                "0.5 0.5 0.55 1",
+            );
+            let _ = writeln!(out, "    </body>");
+        }
+        Prop::Bucket(b) => {
+            let _ = writeln!(
+                out,
+                r#"    <body name="{name}" mocap="true" pos="{x} {y} 0" quat="{} {} {} {}">"#,
+                q[0], q[1], q[2], q[3]
+            );
+            let blue = "0.25 0.45 0.75 1";
+            geom(out, "bottom", format!(r#"type="cylinder" pos="0 0 0.01" size="{} 0.01""#, b.radius + 0.01), blue);
+            let half_chord = b.radius * (PI / BUCKET_WALLS as f64).tan() + 0.01;
+            for i in 0..BUCKET_WALLS {
+                let a = 2.0 * PI * i as f64 / BUCKET_WALLS as f64;
+                let wq = yaw_quat(a.to_degrees());
+                let r = b.radius + 0.01;
+                geom(
+                    out,
+                    &format!("wall{i}"),
+                    format!(
+                        r#"type="box" pos="{} {} {}" quat="{} 0 0 {}" size="0.01 {half_chord} {}""#,
+                        r * a.cos(),
+                        r * a.sin(),
+                        b.height / 2.0,
+                        wq[0],
+                        wq[3],
+                        b.height / 2.0
+                    ),
+                    blue,
+                );
+            }
+            let _ = writeln!(out, "    </body>");
+        }
+        Prop::Box(b) => {
+            let (sx, sy, sz) = (b.size.0 / 2.0, b.size.1 / 2.0, b.size.2 / 2.0);
+            let _ = writeln!(
+                out,
+                r#"    <body name="{name}" pos="{x} {y} {}" quat="{} {} {} {}">"#,
+                sz + at.z.nominal(),
+                q[0],
+                q[1],
+                q[2],
+                q[3]
+            );
+            free_joint(out, &name);
+            geom(
+                out,
+                "box",
+                format!(r#"type="box" size="{sx} {sy} {sz}" mass="{}""#, b.mass.nominal()),
+                "0.72 0.55 0.32 1",
+            );
+            let _ = writeln!(out, "    </body>");
+        }
+        Prop::Ball(b) => {
+            let _ = writeln!(out, r#"    <body name="{name}" pos="{x} {y} {}">"#, b.radius + at.z.nominal());
+            free_joint(out, &name);
+            geom(
+                out,
+                "ball",
+                format!(r#"type="sphere" size="{}" mass="{}""#, b.radius, b.mass.nominal()),
+                "0.85 0.3 0.2 1",
+            );
+            let _ = writeln!(out, "    </body>");
+        }
+    }
+}
+
+fn free_joint(out: &mut String, name: &str) {
+    // Explicit zeros so a body file's joint defaults (damping, armature) never slow a prop down.
+    let _ = writeln!(
+        out,
+        r#"      <joint name="{name}/free" type="free" damping="0" armature="0" stiffness="0" frictionloss="0"/>"#
+    );
+}
+
+fn xml_escape(s: &str) -> String {
+    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
+}

@@ -1,0 +1,179 @@
+//! Named observation features and their layout in a policy's input vector.
+//!
+//! A skill declares the features it observes; the [`ObservationLayout`] fixes their order, sizes
+//! and offsets for one scene. The layout is recorded in skill manifests, so a skill refuses a
+//! world whose layout differs.
+
+use crate::error::{Result, SceneError};
+use crate::world::{World, WorldModel};
+use serde::{Deserialize, Serialize};
+
+/// One named group of observation values.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Feature {
+    /// Actuated joint angles (radians), map order.
+    JointAngles,
+    /// Actuated joint velocities (rad/s), map order.
+    JointVelocities,
+    /// Pelvis height above the floor (m).
+    RootHeight,
+    /// Root linear velocity in the heading frame (m/s; forward, left, up).
+    RootVelocity,
+    /// Pelvis pitch and roll (radians).
+    PitchRoll,
+    /// Foot touch sensors as 0/1, map order.
+    FootContacts,
+    /// A prop's pose relative to the pelvis in the heading frame: dx, dy, dz, sin Δyaw, cos Δyaw.
+    PropPose(String),
+}
+
+impl Feature {
+    /// The feature's name in layouts and manifests.
+    pub fn name(&self) -> String {
+        match self {
+            Feature::JointAngles => "joint_angles".into(),
+            Feature::JointVelocities => "joint_velocities".into(),
+            Feature::RootHeight => "root_height".into(),
+            Feature::RootVelocity => "root_velocity".into(),
+            Feature::PitchRoll => "pitch_roll".into(),
+            Feature::FootContacts => "foot_contacts".into(),
+            Feature::PropPose(p) => format!("prop_pose:{p}"),
+        }
+    }
+
+    /// The proprioceptive features every skill starts from.
+    pub fn proprioception() -> Vec<Feature> {
+        vec![
+            Feature::JointAngles,
+            Feature::JointVelocities,
+            Feature::RootHeight,
+            Feature::RootVelocity,
+            Feature::PitchRoll,
+            Feature::FootContacts,
+        ]
+    }
+}
+
+/// One entry of a layout: a feature's name and where its values sit.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct LayoutEntry {
+    /// The feature's name.
+    pub name: String,
+    /// First index in the observation vector.
+    pub offset: usize,
+    /// Number of values.
+    pub len: usize,
+}
+
+/// The features of an observation, in order, with their offsets for one scene.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ObservationLayout {
+    /// Features in order.
+    pub features: Vec<Feature>,
+    /// Names, offsets and sizes.
+    pub entries: Vec<LayoutEntry>,
+    /// Total number of values.
+    pub size: usize,
+    #[serde(skip)]
+    prop_ids: Vec<usize>,
+}
+
+impl ObservationLayout {
+    /// Lays `features` out for `model`'s scene; a prop feature naming no prop is an error.
+    pub fn new(model: &WorldModel, features: &[Feature]) -> Result<Self> {
+        let dof = model.index.dof();
+        let mut entries = Vec::with_capacity(features.len());
+        let mut prop_ids = Vec::new();
+        let mut offset = 0;
+        for f in features {
+            let len = match f {
+                Feature::JointAngles | Feature::JointVelocities => dof,
+                Feature::RootHeight => 1,
+                Feature::RootVelocity => 3,
+                Feature::PitchRoll => 2,
+                Feature::FootContacts => model.index.foot_touch.len(),
+                Feature::PropPose(name) => {
+                    let id = model.prop_id(name).ok_or_else(|| {
+                        SceneError::Usage(format!(
+                            "observation feature prop_pose:{name}: no prop `{name}` in {}",
+                            model.scenario.path.display()
+                        ))
+                    })?;
+                    prop_ids.push(id);
+                    5
+                }
+            };
+            entries.push(LayoutEntry { name: f.name(), offset, len });
+            offset += len;
+        }
+        Ok(Self { features: features.to_vec(), entries, size: offset, prop_ids })
+    }
+
+    /// Checks that `other` (e.g. from a skill manifest) lays out the same values in the same
+    /// places; the error names the first difference.
+    pub fn ensure_same(&self, other: &ObservationLayout) -> Result<()> {
+        for (i, (a, b)) in self.entries.iter().zip(&other.entries).enumerate() {
+            if a != b {
+                return Err(SceneError::Usage(format!(
+                    "observation entry {i} differs: this world has {} ({} values at {}), expected {} ({} values at {})",
+                    a.name, a.len, a.offset, b.name, b.len, b.offset
+                )));
+            }
+        }
+        if self.entries.len() != other.entries.len() {
+            return Err(SceneError::Usage(format!(
+                "observation has {} features here, {} expected",
+                self.entries.len(),
+                other.entries.len()
+            )));
+        }
+        Ok(())
+    }
+}
+
+impl World {
+    /// Writes the observation described by `layout` into `out` (length `layout.size`).
+    pub fn observe(&self, layout: &ObservationLayout, out: &mut [f32]) {
+        debug_assert_eq!(out.len(), layout.size);
+        let mut props = layout.prop_ids.iter();
+        let data = self.data();
+        let idx = &self.model().index;
+        for (f, e) in layout.features.iter().zip(&layout.entries) {
+            let dst = &mut out[e.offset..e.offset + e.len];
+            match f {
+                Feature::JointAngles => {
+                    for (o, j) in dst.iter_mut().zip(&idx.joints) {
+                        *o = data.qpos()[j.qpos] as f32;
+                    }
+                }
+                Feature::JointVelocities => {
+                    for (o, j) in dst.iter_mut().zip(&idx.joints) {
+                        *o = data.qvel()[j.dof] as f32;
+                    }
+                }
+                Feature::RootHeight => dst[0] = self.root_height() as f32,
+                Feature::RootVelocity => {
+                    for (o, v) in dst.iter_mut().zip(self.root_velocity_heading()) {
+                        *o = v as f32;
+                    }
+                }
+                Feature::PitchRoll => {
+                    let (p, r) = self.pitch_roll();
+                    dst[0] = p as f32;
+                    dst[1] = r as f32;
+                }
+                Feature::FootContacts => {
+                    for (o, &adr) in dst.iter_mut().zip(&idx.foot_touch) {
+                        *o = if data.sensordata()[adr] > 1.0 { 1.0 } else { 0.0 };
+                    }
+                }
+                Feature::PropPose(_) => {
+                    let id = *props.next().expect("one id per prop feature");
+                    for (o, v) in dst.iter_mut().zip(self.prop_relative(id)) {
+                        *o = v as f32;
+                    }
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,685 @@
+//! The simulated world: one compiled scene shared by many [`World`]s that step in parallel.
+//!
+//! [`WorldModel`] is built once from a scenario (body + props + floor compiled by MuJoCo) and
+//! resolves every name the world needs to an id. Each [`World`] owns its `mjData` (and, only when
+//! a free prop's size or mass is drawn per episode, its own copy of the model) and offers what
+//! skills and tasks need: reset to a pose, set the full state for reference-state
+//! initialisation, step one control tick, named observations and contact queries.
+
+use crate::body::{BodyDef, BodyIndex, compile};
+use crate::compose::{scene_mjcf, yaw_quat};
+use crate::error::{Result, SceneError};
+use crate::math::{Frame, wrap_angle};
+use crate::scenario::{BodySource, Facing, Prop, ScenarioFile, Zone};
+use mujoco_rs::prelude::*;
+use rand::Rng;
+use rayon::prelude::*;
+use std::f64::consts::PI;
+use std::sync::Arc;
+
+/// How a prop is held in place.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum PropMount {
+    /// Fixed (a mocap body): moved only between episodes.
+    Fixed {
+        /// Index into mocap_pos / mocap_quat.
+        mocap: usize,
+    },
+    /// Free: a free joint moved by physics.
+    Free {
+        /// qpos address of its free joint.
+        qpos: usize,
+        /// qvel address of its free joint.
+        dof: usize,
+    },
+}
+
+/// A prop resolved to MuJoCo ids.
+#[derive(Debug, Clone)]
+pub struct PropIndex {
+    /// The prop's name.
+    pub name: String,
+    /// Its body id.
+    pub body: usize,
+    /// How it is held.
+    pub mount: PropMount,
+    /// Its geoms.
+    pub geoms: Vec<usize>,
+    /// The geom that matters for tasks: the chair's seat, the pedestal's top, the box, the ball,
+    /// the bucket's bottom.
+    pub key_geom: usize,
+    /// Height the fixed prop was built at (chair seat, pedestal top); lower draws sink it.
+    pub built_height: f64,
+}
+
+/// A prop's placement in the current episode.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PropPlacement {
+    /// Position of the prop's frame (fixed props: on the floor, free props: their centre).
+    pub pos: [f64; 3],
+    /// Heading in radians.
+    pub yaw: f64,
+    /// Height of its top surface (chair seat, pedestal top; free props: their top).
+    pub top: f64,
+    /// Size scale drawn for a free prop (1 otherwise).
+    pub scale: f64,
+    /// Mass drawn for a free prop (0 for fixed props).
+    pub mass: f64,
+}
+
+/// One compiled scene, shared by any number of [`World`]s.
+pub struct WorldModel {
+    /// The scenario it was built from.
+    pub scenario: ScenarioFile,
+    /// The body and its map.
+    pub body: BodyDef,
+    /// The body map resolved to ids in the scene.
+    pub index: BodyIndex,
+    /// The composed MJCF that MuJoCo compiled.
+    pub mjcf: String,
+    /// Props in scenario order, resolved.
+    pub props: Vec<PropIndex>,
+    /// The floor geom.
+    pub floor_geom: usize,
+    model: Arc<MjModel>,
+    geom_body: Vec<usize>,
+    geom_prop: Vec<Option<usize>>,
+    substeps: usize,
+}
+
+impl WorldModel {
+    /// Builds the scene of `scenario`: loads its body, checks it alone, composes the scene and
+    /// compiles it.
+    pub fn build(scenario: ScenarioFile) -> Result<Self> {
+        let body = match &scenario.scenario.body {
+            BodySource::Humanoid => BodyDef::humanoid(),
+            BodySource::Mjcf { file, map } => BodyDef::load(&scenario.resolve(file), &scenario.resolve(map))?,
+        };
+        body.check()?;
+        let mjcf = scene_mjcf(&body, &scenario.scenario)?;
+        let model = compile(&mjcf, &scenario.path)?;
+        let index = BodyIndex::resolve(&model, &body)?;
+        let floor_geom = model
+            .name_to_id(MjtObjBase::mjOBJ_GEOM, "floor")
+            .ok_or_else(|| SceneError::Usage("the scene has no floor geom".into()))?;
+
+        let geom_body: Vec<usize> = model.geom_bodyid().iter().map(|&b| b as usize).collect();
+        let mut geom_prop = vec![None; geom_body.len()];
+        let mut props = Vec::new();
+        for (i, prop) in scenario.scenario.props.iter().enumerate() {
+            let name = prop.name();
+            let body_id = model.name_to_id(MjtObjBase::mjOBJ_BODY, name).ok_or_else(|| {
+                scenario.invalid(Some(name), format!("prop `{name}` has a name the body already uses"))
+            })?;
+            if index.is_character[body_id] {
+                return Err(scenario.invalid(Some(name), format!("prop `{name}` has the name of a body part")));
+            }
+            let geoms: Vec<usize> = (0..geom_body.len()).filter(|&g| geom_body[g] == body_id).collect();
+            for &g in &geoms {
+                geom_prop[g] = Some(i);
+            }
+            let key = match prop {
+                Prop::Chair(_) => "seat",
+                Prop::Pedestal(_) => "top",
+                Prop::Box(_) => "box",
+                Prop::Ball(_) => "ball",
+                Prop::Bucket(_) => "bottom",
+            };
+            let key_geom = model
+                .name_to_id(MjtObjBase::mjOBJ_GEOM, &format!("{name}/{key}"))
+                .ok_or_else(|| SceneError::Usage(format!("prop `{name}` lost its `{key}` geom")))?;
+            let mount = if prop.is_free() {
+                let j = model.body_jntadr()[body_id] as usize;
+                PropMount::Free { qpos: model.jnt_qposadr()[j] as usize, dof: model.jnt_dofadr()[j] as usize }
+            } else {
+                PropMount::Fixed { mocap: model.body_mocapid()[body_id] as usize }
+            };
+            let built_height = match prop {
+                Prop::Chair(c) => c.seat_height.max(),
+                Prop::Pedestal(p) => p.height.max(),
+                Prop::Bucket(_) => 0.02,
+                Prop::Box(_) | Prop::Ball(_) => 0.0,
+            };
+            props.push(PropIndex { name: name.to_string(), body: body_id, mount, geoms, key_geom, built_height });
+        }
+
+        let substeps = scenario.scenario.rates.substeps();
+        Ok(Self {
+            scenario,
+            body,
+            index,
+            mjcf,
+            props,
+            floor_geom,
+            model: Arc::new(model),
+            geom_body,
+            geom_prop,
+            substeps,
+        })
+    }
+
+    /// The compiled MuJoCo model.
+    pub fn mj_model(&self) -> &Arc<MjModel> {
+        &self.model
+    }
+
+    /// Physics steps per control tick.
+    pub fn substeps(&self) -> usize {
+        self.substeps
+    }
+
+    /// Seconds per control tick.
+    pub fn control_dt(&self) -> f64 {
+        1.0 / f64::from(self.scenario.scenario.rates.control_hz)
+    }
+
+    /// Index of the prop called `name`.
+    pub fn prop_id(&self, name: &str) -> Option<usize> {
+        self.props.iter().position(|p| p.name == name)
+    }
+
+    /// The standing pose: the model's default configuration (every joint at 0, feet on the floor).
+    pub fn standing_qpos(&self) -> &[f64] {
+        self.model.qpos0()
+    }
+
+    /// Turns off actuation (every actuator force is zero), for a limp body. Must be called
+    /// before any world is made from this model.
+    pub fn disable_actuation(&mut self) -> Result<()> {
+        let model = Arc::get_mut(&mut self.model)
+            .ok_or_else(|| SceneError::Usage("disable_actuation must come before worlds are made".into()))?;
+        model.opt_mut().disableflags |= MjtDisableBit::mjDSBL_ACTUATION as i32;
+        Ok(())
+    }
+
+    /// A new world of this scene, standing at the origin with nominal props.
+    pub fn new_world(self: &Arc<Self>) -> World {
+        World::new(Arc::clone(self))
+    }
+}
+
+/// One simulated world: the character, the props and the physics state.
+pub struct World {
+    shared: Arc<WorldModel>,
+    data: MjData<Arc<MjModel>>,
+    placements: Vec<PropPlacement>,
+    owns_model: bool,
+}
+
+impl World {
+    /// A world of `shared`'s scene, standing at the origin with nominal props.
+    pub fn new(shared: Arc<WorldModel>) -> Self {
+        let data = MjData::new(Arc::clone(&shared.model));
+        let placements = shared
+            .scenario
+            .scenario
+            .props
+            .iter()
+            .zip(&shared.props)
+            .map(|(p, idx)| {
+                let at = p.pose();
+                PropPlacement {
+                    pos: [at.x.nominal(), at.y.nominal(), 0.0],
+                    yaw: at.yaw_deg.nominal().to_radians(),
+                    top: idx.built_height,
+                    scale: 1.0,
+                    mass: 0.0,
+                }
+            })
+            .collect();
+        let mut world = Self { shared, data, placements, owns_model: false };
+        world.data.forward();
+        world
+    }
+
+    /// The shared scene.
+    pub fn model(&self) -> &Arc<WorldModel> {
+        &self.shared
+    }
+
+    /// MuJoCo's data, for anything this API does not cover.
+    pub fn data(&self) -> &MjData<Arc<MjModel>> {
+        &self.data
+    }
+
+    /// Simulated time in seconds since the last reset.
+    pub fn time(&self) -> f64 {
+        self.data.time()
+    }
+
+    /// Where each prop is this episode.
+    pub fn placements(&self) -> &[PropPlacement] {
+        &self.placements
+    }
+
+    /// Starts an episode: draws the props, then stands the character at `(x, y)` facing `yaw`.
+    pub fn reset(&mut self, rng: &mut impl Rng, x: f64, y: f64, yaw: f64) {
+        self.data.reset();
+        self.sample_props(rng);
+        self.place_standing(x, y, yaw);
+    }
+
+    /// Draws every prop's pose, size and mass for a new episode (per the scenario's ranges).
+    pub fn sample_props(&mut self, rng: &mut impl Rng) {
+        let shared = Arc::clone(&self.shared);
+        let props = &shared.scenario.scenario.props;
+        let mut new_scales: Vec<(usize, f64, f64)> = Vec::new();
+        for (i, prop) in props.iter().enumerate() {
+            if prop.rests_on().is_some() {
+                continue; // placed once its base is known, below
+            }
+            self.placements[i] = self.draw_placement(prop, &shared.props[i], None, rng, &mut new_scales);
+        }
+        for (i, prop) in props.iter().enumerate() {
+            if let Some(base) = prop.rests_on() {
+                let b = shared.prop_id(base).expect("validated reference");
+                let base = self.placements[b];
+                self.placements[i] = self.draw_placement(prop, &shared.props[i], Some(base), rng, &mut new_scales);
+            }
+        }
+        if !new_scales.is_empty() {
+            self.rescale_free_props(&new_scales);
+        }
+        for (i, idx) in shared.props.iter().enumerate() {
+            let p = self.placements[i];
+            let q = yaw_quat(p.yaw.to_degrees());
+            match idx.mount {
+                PropMount::Fixed { mocap } => {
+                    self.data.mocap_pos_mut()[mocap] = p.pos;
+                    self.data.mocap_quat_mut()[mocap] = q;
+                }
+                PropMount::Free { qpos, dof } => {
+                    let qp = self.data.qpos_mut();
+                    qp[qpos..qpos + 3].copy_from_slice(&p.pos);
+                    qp[qpos + 3..qpos + 7].copy_from_slice(&q);
+                    self.data.qvel_mut()[dof..dof + 6].fill(0.0);
+                }
+            }
+        }
+        self.data.forward();
+    }
+
+    fn draw_placement(
+        &self,
+        prop: &Prop,
+        idx: &PropIndex,
+        base: Option<PropPlacement>,
+        rng: &mut impl Rng,
+        rescale: &mut Vec<(usize, f64, f64)>,
+    ) -> PropPlacement {
+        let at = prop.pose();
+        let (mut x, mut y) = (at.x.sample(rng), at.y.sample(rng));
+        let z = at.z.sample(rng);
+        let yaw = at.yaw_deg.sample(rng).to_radians();
+        let floor = match base {
+            Some(b) => {
+                x = b.pos[0];
+                y = b.pos[1];
+                b.top
+            }
+            None => 0.0,
+        };
+        match prop {
+            Prop::Chair(c) => {
+                let h = c.seat_height.sample(rng);
+                PropPlacement { pos: [x, y, h - idx.built_height], yaw, top: h, scale: 1.0, mass: 0.0 }
+            }
+            Prop::Pedestal(p) => {
+                let h = p.height.sample(rng);
+                PropPlacement { pos: [x, y, h - idx.built_height], yaw, top: h, scale: 1.0, mass: 0.0 }
+            }
+            Prop::Bucket(_) => PropPlacement { pos: [x, y, 0.0], yaw, top: idx.built_height, scale: 1.0, mass: 0.0 },
+            Prop::Box(b) => {
+                let (s, m) = (b.scale.sample(rng), b.mass.sample(rng));
+                if b.scale.is_random() || b.mass.is_random() {
+                    rescale.push((idx.body, s, m));
+                }
+                let half = 0.5 * b.size.2 * s;
+                PropPlacement { pos: [x, y, floor + z + half], yaw, top: floor + z + 2.0 * half, scale: s, mass: m }
+            }
+            Prop::Ball(b) => {
+                let (s, m) = (b.scale.sample(rng), b.mass.sample(rng));
+                if b.scale.is_random() || b.mass.is_random() {
+                    rescale.push((idx.body, s, m));
+                }
+                let r = b.radius * s;
+                PropPlacement { pos: [x, y, floor + z + r], yaw, top: floor + z + 2.0 * r, scale: s, mass: m }
+            }
+        }
+    }
+
+    /// Gives this world its own copy of the model (once) and sets free props' size and mass.
+    fn rescale_free_props(&mut self, changes: &[(usize, f64, f64)]) {
+        let base = &self.shared.model;
+        let mut model: MjModel = if self.owns_model { self.data.model().clone() } else { (**base).clone() };
+        for &(body, scale, mass) in changes {
+            let nominal_mass = base.body_mass()[body];
+            let ratio = if nominal_mass > 0.0 { mass / nominal_mass } else { 1.0 };
+            model.body_mass_mut()[body] = mass;
+            let inertia = base.body_inertia()[body];
+            model.body_inertia_mut()[body] = inertia.map(|v| v * ratio * scale * scale);
+            for g in (0..self.shared.geom_body.len()).filter(|&g| self.shared.geom_body[g] == body) {
+                model.geom_size_mut()[g] = base.geom_size()[g].map(|v| v * scale);
+                model.geom_rbound_mut()[g] = base.geom_rbound()[g] * scale;
+                model.geom_aabb_mut()[g] = base.geom_aabb()[g].map(|v| v * scale);
+            }
+        }
+        self.data.swap_model(Arc::new(model));
+        self.owns_model = true;
+    }
+
+    /// Stands the character in the default pose at `(x, y)` on the floor, facing `yaw`
+    /// (radians, counter-clockwise from +x), at rest.
+    pub fn place_standing(&mut self, x: f64, y: f64, yaw: f64) {
+        let idx = &self.shared.index;
+        let qpos0 = self.shared.model.qpos0();
+        let r = idx.root_qpos;
+        let qp = self.data.qpos_mut();
+        for j in &idx.joints {
+            qp[j.qpos] = qpos0[j.qpos];
+        }
+        qp[r] = x;
+        qp[r + 1] = y;
+        qp[r + 2] = qpos0[r + 2];
+        qp[r + 3..r + 7].copy_from_slice(&yaw_quat(yaw.to_degrees()));
+        self.data.qvel_mut()[idx.root_dof..idx.root_dof + 6].fill(0.0);
+        for j in &idx.joints {
+            self.data.qvel_mut()[j.dof] = 0.0;
+        }
+        self.hold_pose();
+        self.data.forward();
+    }
+
+    /// Sets the character's pose: root position, root orientation (w x y z) and the actuated
+    /// joint angles in map order; velocities are zeroed and PD targets set to the pose.
+    pub fn set_pose(&mut self, root_pos: [f64; 3], root_quat: [f64; 4], joints: &[f64]) -> Result<()> {
+        let idx = &self.shared.index;
+        if joints.len() != idx.dof() {
+            return Err(SceneError::Usage(format!(
+                "set_pose: {} joint angles given, the body has {}",
+                joints.len(),
+                idx.dof()
+            )));
+        }
+        let r = idx.root_qpos;
+        let qp = self.data.qpos_mut();
+        qp[r..r + 3].copy_from_slice(&root_pos);
+        qp[r + 3..r + 7].copy_from_slice(&root_quat);
+        for (j, &a) in idx.joints.iter().zip(joints) {
+            qp[j.qpos] = a;
+        }
+        self.data.qvel_mut()[idx.root_dof..idx.root_dof + 6].fill(0.0);
+        for j in &idx.joints {
+            self.data.qvel_mut()[j.dof] = 0.0;
+        }
+        self.hold_pose();
+        self.data.forward();
+        Ok(())
+    }
+
+    /// Sets the full physics state (qpos and qvel of the whole scene, props included), as
+    /// reference-state initialisation needs.
+    pub fn set_state(&mut self, qpos: &[f64], qvel: &[f64]) -> Result<()> {
+        let (nq, nv) = (self.data.qpos().len(), self.data.qvel().len());
+        if qpos.len() != nq || qvel.len() != nv {
+            return Err(SceneError::Usage(format!(
+                "set_state: got {} qpos and {} qvel values, the scene has {nq} and {nv}",
+                qpos.len(),
+                qvel.len()
+            )));
+        }
+        if qpos.iter().chain(qvel).any(|v| !v.is_finite()) {
+            return Err(SceneError::Usage("set_state: the state holds a NaN or infinite value".into()));
+        }
+        self.data.qpos_mut().copy_from_slice(qpos);
+        self.data.qvel_mut().copy_from_slice(qvel);
+        self.hold_pose();
+        self.data.forward();
+        Ok(())
+    }
+
+    /// Sets every PD target to the current joint angle (so the body holds its pose).
+    fn hold_pose(&mut self) {
+        let idx = &self.shared.index;
+        for j in &idx.joints {
+            let a = self.data.qpos()[j.qpos].clamp(j.ctrl_range[0], j.ctrl_range[1]);
+            self.data.ctrl_mut()[j.actuator] = a;
+        }
+    }
+
+    /// One control tick: PD targets `action` (one per actuated joint, in map order; clipped to
+    /// each actuator's range) held for `physics_hz / control_hz` physics steps.
+    pub fn step(&mut self, action: &[f64]) -> Result<()> {
+        let joints = &self.shared.index.joints;
+        if action.len() != joints.len() {
+            return Err(SceneError::Usage(format!(
+                "step: {} actions given, the body has {} actuated joints",
+                action.len(),
+                joints.len()
+            )));
+        }
+        let ctrl = self.data.ctrl_mut();
+        for (j, &a) in joints.iter().zip(action) {
+            ctrl[j.actuator] = if a.is_finite() { a.clamp(j.ctrl_range[0], j.ctrl_range[1]) } else { ctrl[j.actuator] };
+        }
+        for _ in 0..self.shared.substeps {
+            self.data.step();
+        }
+        Ok(())
+    }
+
+    /// Actuated joint angles in map order.
+    pub fn joint_angles(&self, out: &mut [f64]) {
+        let qpos = self.data.qpos();
+        for (o, j) in out.iter_mut().zip(&self.shared.index.joints) {
+            *o = qpos[j.qpos];
+        }
+    }
+
+    /// Actuated joint velocities in map order.
+    pub fn joint_velocities(&self, out: &mut [f64]) {
+        let qvel = self.data.qvel();
+        for (o, j) in out.iter_mut().zip(&self.shared.index.joints) {
+            *o = qvel[j.dof];
+        }
+    }
+
+    /// The pelvis frame (position and orientation) in world coordinates.
+    pub fn pelvis_frame(&self) -> Frame {
+        self.body_frame(self.shared.index.pelvis)
+    }
+
+    /// A body's frame in world coordinates.
+    pub fn body_frame(&self, body: usize) -> Frame {
+        Frame { pos: self.data.xpos()[body], rot: self.data.xmat()[body] }
+    }
+
+    /// A body's position in world coordinates.
+    pub fn body_position(&self, body: usize) -> [f64; 3] {
+        self.data.xpos()[body]
+    }
+
+    /// The character's centre of mass.
+    pub fn center_of_mass(&self) -> [f64; 3] {
+        self.data.subtree_com()[self.shared.index.pelvis]
+    }
+
+    /// Height of the pelvis above the floor.
+    pub fn root_height(&self) -> f64 {
+        self.data.xpos()[self.shared.index.pelvis][2]
+    }
+
+    /// The pelvis's heading (yaw, radians): the direction its +x axis points on the floor.
+    pub fn heading(&self) -> f64 {
+        self.pelvis_frame().yaw()
+    }
+
+    /// Pelvis pitch and roll in radians (Z-Y-X Euler angles).
+    pub fn pitch_roll(&self) -> (f64, f64) {
+        let f = self.pelvis_frame();
+        (f.pitch(), f.roll())
+    }
+
+    /// The root's linear velocity in the heading frame (x forward, y left, z up).
+    pub fn root_velocity_heading(&self) -> [f64; 3] {
+        let d = self.shared.index.root_dof;
+        let v = &self.data.qvel()[d..d + 3];
+        let (s, c) = self.heading().sin_cos();
+        [c * v[0] + s * v[1], -s * v[0] + c * v[1], v[2]]
+    }
+
+    /// Foot touch sensors (left, right, ...) above `threshold` newtons.
+    pub fn foot_touch(&self, threshold: f64, out: &mut [bool]) {
+        let sd = self.data.sensordata();
+        for (o, &adr) in out.iter_mut().zip(&self.shared.index.foot_touch) {
+            *o = sd[adr] > threshold;
+        }
+    }
+
+    /// A prop's pose relative to the pelvis, in the heading frame: `[dx, dy, dz, sin Δyaw, cos Δyaw]`.
+    pub fn prop_relative(&self, prop: usize) -> [f64; 5] {
+        let idx = &self.shared.props[prop];
+        let (pos, yaw) = match idx.mount {
+            PropMount::Fixed { .. } => {
+                let p = self.placements[prop];
+                ([p.pos[0], p.pos[1], p.top], p.yaw)
+            }
+            PropMount::Free { .. } => {
+                let f = self.body_frame(idx.body);
+                (f.pos, f.yaw())
+            }
+        };
+        let pelvis = self.pelvis_frame();
+        let heading = pelvis.yaw();
+        let (s, c) = heading.sin_cos();
+        let d = [pos[0] - pelvis.pos[0], pos[1] - pelvis.pos[1], pos[2] - pelvis.pos[2]];
+        let dyaw = wrap_angle(yaw - heading);
+        [c * d[0] + s * d[1], -s * d[0] + c * d[1], d[2], dyaw.sin(), dyaw.cos()]
+    }
+
+    /// What is touching what right now (one pass over MuJoCo's contact list).
+    pub fn contacts(&self) -> Contacts {
+        let shared = &*self.shared;
+        let idx = &shared.index;
+        let mut out = Contacts::default();
+        for c in self.data.contact() {
+            let (g1, g2) = (c.geom[0] as usize, c.geom[1] as usize);
+            for (g, other) in [(g1, g2), (g2, g1)] {
+                let b = shared.geom_body[g];
+                if other == shared.floor_geom {
+                    if idx.is_character[b] && !idx.floor_ok[b] {
+                        out.fallen = true;
+                    }
+                    if let Some(p) = shared.geom_prop[g] {
+                        out.prop_on_floor |= 1 << p.min(63);
+                    }
+                }
+                if let Some(p) = shared.geom_prop[other] {
+                    let bit = 1u64 << p.min(63);
+                    if b == idx.pelvis && other == shared.props[p].key_geom {
+                        out.pelvis_on |= bit;
+                    }
+                    if let Some(side) = idx.hand_of[b] {
+                        out.hand_on[side] |= bit;
+                    }
+                    if idx.is_character[b] {
+                        out.character_on |= bit;
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    /// True when a body part other than those allowed (the feet) touches the floor.
+    pub fn has_fallen(&self) -> bool {
+        self.contacts().fallen
+    }
+}
+
+/// A summary of the contacts in a world, as bit sets over prop indices (props past 63 share
+/// the last bit).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Contacts {
+    /// A non-foot body part touches the floor.
+    pub fallen: bool,
+    /// Props whose key geom (the seat, ...) the pelvis touches.
+    pub pelvis_on: u64,
+    /// Props each hand (left, right) touches.
+    pub hand_on: [u64; 2],
+    /// Props any part of the character touches.
+    pub character_on: u64,
+    /// Props touching the floor.
+    pub prop_on_floor: u64,
+}
+
+impl Contacts {
+    /// True when the pelvis touches prop `p`'s key geom (a chair's seat).
+    pub fn pelvis_on_prop(&self, p: usize) -> bool {
+        self.pelvis_on & (1 << p.min(63)) != 0
+    }
+
+    /// Which hands (left, right) touch prop `p`.
+    pub fn hands_on_prop(&self, p: usize) -> [bool; 2] {
+        let bit = 1 << p.min(63);
+        [self.hand_on[0] & bit != 0, self.hand_on[1] & bit != 0]
+    }
+
+    /// True when prop `p` touches the floor (a ball that dropped).
+    pub fn prop_on_floor(&self, p: usize) -> bool {
+        self.prop_on_floor & (1 << p.min(63)) != 0
+    }
+}
+
+/// Draws a start position and heading in a spawn zone, given the zone's prop placement.
+pub fn spawn_point(zone: &Zone, around: Option<PropPlacement>, rng: &mut impl Rng) -> (f64, f64, f64) {
+    let (cx, cy, cyaw) = around.map_or((0.0, 0.0, 0.0), |p| (p.pos[0], p.pos[1], p.yaw));
+    let radius = zone.radius.sample(rng);
+    let mut angle = zone.angle_deg.sample(rng).to_radians();
+    if zone.mirrored && rng.random_bool(0.5) {
+        angle = -angle;
+    }
+    let world_angle = cyaw + angle;
+    let (x, y) = (cx + radius * world_angle.cos(), cy + radius * world_angle.sin());
+    let toward = (cy - y).atan2(cx - x);
+    let jitter =
+        |j: f64, rng: &mut dyn rand::RngCore| if j > 0.0 { rng.random_range(-j..=j).to_radians() } else { 0.0 };
+    let yaw = match zone.facing {
+        Facing::Toward { jitter_deg } => toward + jitter(jitter_deg, rng),
+        Facing::Away { jitter_deg } => toward + PI + jitter(jitter_deg, rng),
+        Facing::Uniform => rng.random_range(-PI..PI),
+        Facing::World(p) => p.sample(rng).to_radians(),
+    };
+    (x, y, wrap_angle(yaw))
+}
+
+impl World {
+    /// Starts an episode in spawn zone `zone`: draws the props, then a start point in the zone.
+    pub fn reset_in_zone(&mut self, zone: &str, rng: &mut impl Rng) -> Result<(f64, f64, f64)> {
+        let shared = Arc::clone(&self.shared);
+        let z = shared.scenario.scenario.spawn.iter().find(|z| z.name == zone).ok_or_else(|| {
+            SceneError::Usage(format!("no spawn zone `{zone}` in {}", shared.scenario.path.display()))
+        })?;
+        self.data.reset();
+        self.sample_props(rng);
+        let around = z.around.as_deref().and_then(|n| shared.prop_id(n)).map(|p| self.placements[p]);
+        let (x, y, yaw) = spawn_point(z, around, rng);
+        self.place_standing(x, y, yaw);
+        Ok((x, y, yaw))
+    }
+}
+
+/// Steps every world one control tick in parallel; `actions` holds one row of
+/// `dof` values per world.
+pub fn step_parallel(worlds: &mut [World], actions: &[f64]) -> Result<()> {
+    let Some(first) = worlds.first() else { return Ok(()) };
+    let dof = first.shared.index.dof();
+    if actions.len() != dof * worlds.len() {
+        return Err(SceneError::Usage(format!(
+            "step_parallel: {} actions for {} worlds of {dof} actuated joints",
+            actions.len(),
+            worlds.len()
+        )));
+    }
+    worlds.par_iter_mut().zip(actions.par_chunks(dof)).try_for_each(|(w, a)| w.step(a))
+}

@@ -1,0 +1,50 @@
+//! Command-line interface: argument parsing and one function per command.
+
+mod bench;
+mod run;
+mod scene;
+
+use anyhow::Result;
+use clap::{Parser, Subcommand};
+use repertoire_scenes::ScenarioFile;
+use std::path::PathBuf;
+
+/// Physics-based humanoid characters that compose learned motor skills.
+#[derive(Debug, Parser)]
+#[command(name = "repertoire", version, about)]
+pub struct Cli {
+    /// More log output (or set RUST_LOG).
+    #[arg(short, long, global = true)]
+    pub verbose: bool,
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Run the main job on a scenario (default: the built-in scenes/sit.ron).
+    Run(run::RunArgs),
+    /// Inspect scenario files.
+    #[command(subcommand)]
+    Scene(scene::SceneCommand),
+    /// Measure throughput.
+    #[command(subcommand)]
+    Bench(bench::BenchCommand),
+}
+
+/// Dispatches one parsed command line.
+pub fn run(cli: Cli) -> Result<()> {
+    match cli.command {
+        Command::Run(args) => run::run(args),
+        Command::Scene(cmd) => scene::run(cmd),
+        Command::Bench(cmd) => bench::run(cmd),
+    }
+}
+
+/// Loads the scenario at `path`, or the built-in default when none is given.
+pub fn load_scenario(path: Option<&PathBuf>) -> Result<ScenarioFile> {
+    Ok(match path {
+        Some(p) => ScenarioFile::load(p)?,
+        None => ScenarioFile::builtin_default(),
+    })
+}

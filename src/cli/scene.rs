@@ -1,0 +1,120 @@
+//! `repertoire scene check|mjcf FILE`.
+
+use anyhow::Result;
+use clap::Subcommand;
+use repertoire_scenes::WorldModel;
+use repertoire_scenes::scenario::{Facing, Prop};
+use std::path::PathBuf;
+use std::sync::Arc;
+
+#[derive(Debug, Subcommand)]
+pub enum SceneCommand {
+    /// Validate a scenario and print its body, degrees of freedom, props and zones.
+    Check {
+        /// Scenario RON file (default: the built-in scenes/sit.ron).
+        file: Option<PathBuf>,
+    },
+    /// Print the composed MJCF that MuJoCo compiles for a scenario.
+    Mjcf {
+        /// Scenario RON file (default: the built-in scenes/sit.ron).
+        file: Option<PathBuf>,
+    },
+}
+
+pub fn run(cmd: SceneCommand) -> Result<()> {
+    match cmd {
+        SceneCommand::Check { file } => check(file),
+        SceneCommand::Mjcf { file } => {
+            let model = WorldModel::build(super::load_scenario(file.as_ref())?)?;
+            print!("{}", model.mjcf);
+            Ok(())
+        }
+    }
+}
+
+fn check(file: Option<PathBuf>) -> Result<()> {
+    let scenario = super::load_scenario(file.as_ref())?;
+    let model = Arc::new(WorldModel::build(scenario)?);
+    let s = &model.scenario.scenario;
+    let mj = model.mj_model().ffi();
+    let mass: f64 =
+        model.mj_model().body_mass().iter().zip(&model.index.is_character).filter(|(_, c)| **c).map(|(m, _)| m).sum();
+    let world = model.new_world();
+    let head = world.body_position(model.index.head)[2];
+
+    println!("scenario  {} ({})", s.name, model.scenario.path.display());
+    if !s.description.is_empty() {
+        println!("          {}", s.description);
+    }
+    println!("body      {} (hash {})", model.body.mjcf_path.display(), model.body.content_hash());
+    println!("          {} actuated DoF, {:.1} kg, head centre at {:.2} m", model.index.dof(), mass, head);
+    println!("          joints: {}", model.index.joints.iter().map(|j| j.name.as_str()).collect::<Vec<_>>().join(" "));
+    println!(
+        "rates     physics {} Hz, control {} Hz ({} substeps), meta {} Hz",
+        s.rates.physics_hz,
+        s.rates.control_hz,
+        model.substeps(),
+        s.rates.meta_hz
+    );
+    println!(
+        "model     nbody {}, ngeom {}, nq {}, nv {}, nu {}, MuJoCo {}",
+        mj.nbody,
+        mj.ngeom,
+        mj.nq,
+        mj.nv,
+        mj.nu,
+        repertoire_scenes::mujoco_version()
+    );
+    println!("props     {}", s.props.len());
+    for p in &s.props {
+        let at = p.pose();
+        let detail = match p {
+            Prop::Chair(c) => format!(
+                "seat height {} m, {}×{} m, back {} m",
+                c.seat_height, c.seat_width, c.seat_depth, c.back_height
+            ),
+            Prop::Box(b) => {
+                format!("{}×{}×{} m × scale {}, {} kg{}", b.size.0, b.size.1, b.size.2, b.scale, b.mass, on(&b.on))
+            }
+            Prop::Pedestal(p) => format!("top {}×{} m at height {} m", p.top.0, p.top.1, p.height),
+            Prop::Ball(b) => format!("radius {} m × scale {}, {} kg{}", b.radius, b.scale, b.mass, on(&b.on)),
+            Prop::Bucket(b) => format!("radius {} m, height {} m", b.radius, b.height),
+        };
+        println!("  {:<8} {:<10} at x {} y {} yaw {}°  {}", p.kind(), p.name(), at.x, at.y, at.yaw_deg, detail);
+    }
+    println!("zones     {}", s.spawn.len());
+    for z in &s.spawn {
+        let facing = match z.facing {
+            Facing::Toward { jitter_deg } => format!("toward ±{jitter_deg}°"),
+            Facing::Away { jitter_deg } => format!("away ±{jitter_deg}°"),
+            Facing::Uniform => "uniform".into(),
+            Facing::World(p) => format!("world {}°", p),
+        };
+        println!(
+            "  {:<8} around {:<8} radius {} m, angle {}°{}, facing {}",
+            z.name,
+            z.around.as_deref().unwrap_or("origin"),
+            z.radius,
+            z.angle_deg,
+            if z.mirrored { " and mirrored" } else { "" },
+            facing
+        );
+    }
+    println!("task      {:?}", s.task);
+    println!("skills    {}", if s.skills.is_empty() { "none".into() } else { s.skills.join(", ") });
+    match &s.curriculum {
+        Some(c) => println!(
+            "curriculum {} (advance at {:.0} % over {} episodes)",
+            c.zones.join(" → "),
+            c.advance_at * 100.0,
+            c.window
+        ),
+        None => println!("curriculum none"),
+    }
+    println!("ok");
+    Ok(())
+}
+
+fn on(base: &Option<String>) -> String {
+    base.as_ref().map(|b| format!(", on {b}")).unwrap_or_default()
+}

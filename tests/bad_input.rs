@@ -1,0 +1,128 @@
+//! Every class of bad input gets an error naming the file and the place, never a panic.
+
+mod common;
+
+use common::{temp_dir, write};
+use repertoire::scenes::{BodyDef, Location, ScenarioFile, SceneError, WorldModel};
+
+fn load(dir: &std::path::Path, text: &str) -> Result<WorldModel, SceneError> {
+    let path = write(dir, "scene.ron", text);
+    WorldModel::build(ScenarioFile::load(&path)?)
+}
+
+#[test]
+fn ron_syntax_error_names_file_line_and_column() {
+    let dir = temp_dir("syntax");
+    let err = load(&dir, "Scenario(\n    name: \"x\",\n    props: [Chair(name: \"c\"\n)").err().unwrap();
+    let SceneError::Ron { file, loc, .. } = &err else { panic!("expected a RON error, got {err}") };
+    assert!(file.ends_with("scene.ron"));
+    assert!(loc.line >= 3, "{err}");
+    assert!(err.to_string().starts_with(&format!("{}:", file.display())), "{err}");
+}
+
+#[test]
+fn unknown_field_is_rejected_with_its_name_and_place() {
+    let dir = temp_dir("unknown-field");
+    let text = "Scenario(\n    name: \"x\",\n    rates: (physics_hz: 240, control_hz: 60, meta_hz: 2, turbo: true),\n)";
+    let err = load(&dir, text).err().unwrap();
+    let msg = err.to_string();
+    assert!(msg.contains("unknown field `turbo`"), "{msg}");
+    assert!(msg.contains("physics_hz"), "lists the expected fields: {msg}");
+    let SceneError::Ron { loc, .. } = err else { panic!() };
+    assert_eq!(loc.line, 3, "{msg}");
+}
+
+#[test]
+fn unknown_prop_reference_is_located() {
+    let dir = temp_dir("unknown-prop");
+    let text = "Scenario(\n  name: \"x\",\n  props: [Chair(name: \"chair\")],\n  task: Sit(seat: \"sofa\"),\n)";
+    let err = load(&dir, text).err().unwrap();
+    let msg = err.to_string();
+    assert!(msg.contains("`sofa`") && msg.contains("props: chair"), "{msg}");
+    let SceneError::Invalid { loc, .. } = err else { panic!("{msg}") };
+    assert_eq!(loc, Some(Location { line: 4, col: 19 }), "{msg}");
+
+    let zone = "Scenario(name: \"x\", props: [Chair(name: \"chair\")],\n spawn: [Zone(name: \"z\", around: \"table\", radius: 1.0, angle_deg: 0.0)])";
+    let msg = load(&dir, zone).err().unwrap().to_string();
+    assert!(msg.contains("zone `z`") && msg.contains("`table`") && msg.contains(":2:"), "{msg}");
+}
+
+#[test]
+fn inconsistent_values_are_explained() {
+    let dir = temp_dir("inconsistent");
+    for (text, expect) in [
+        ("Scenario(name: \"x\", rates: (physics_hz: 240, control_hz: 50, meta_hz: 2))", "must divide physics_hz"),
+        ("Scenario(name: \"x\", props: [Chair(name: \"c\", seat_height: (0.5, 0.4))])", "low end above its high end"),
+        ("Scenario(name: \"x\", skills: [\"walk\", \"moonwalk\"])", "unknown skill `moonwalk`"),
+        ("Scenario(name: \"x\", props: [Chair(name: \"c\"), Box(name: \"c\")])", "two props are named `c`"),
+        ("Scenario(name: \"x\", props: [Ball(name: \"b\"), Box(name: \"k\", on: \"b\")])", "not on ball `b`"),
+        ("Scenario(name: \"x\", curriculum: (zones: [\"front\"]))", "curriculum names zone `front`"),
+    ] {
+        let err = load(&dir, text).err().unwrap_or_else(|| panic!("accepted: {text}"));
+        assert!(err.to_string().contains(expect), "{text}\n→ {err}");
+        assert!(err.to_string().contains("scene.ron"), "{err}");
+    }
+}
+
+const BODY_SCENE: &str =
+    "Scenario(name: \"own\", body: Mjcf(file: \"body.xml\", map: \"body.map.ron\"), props: [Chair(name: \"chair\")])";
+
+fn user_body(dir: &std::path::Path, xml: &str, map: &str) -> Result<WorldModel, SceneError> {
+    write(dir, "body.xml", xml);
+    write(dir, "body.map.ron", map);
+    load(dir, BODY_SCENE)
+}
+
+#[test]
+fn a_user_mjcf_body_goes_through_the_same_path() {
+    let dir = temp_dir("user-body");
+    let builtin = BodyDef::humanoid();
+    let model =
+        user_body(&dir, &builtin.mjcf, &builtin.map_text).expect("a copy of the built-in body loads as a user body");
+    assert_eq!(model.index.dof(), 25);
+    assert!(model.body.mjcf_path.ends_with("body.xml"));
+}
+
+#[test]
+fn an_mjcf_that_mujoco_rejects_passes_on_mujocos_message() {
+    let dir = temp_dir("bad-mjcf");
+    let builtin = BodyDef::humanoid();
+    let xml = builtin.mjcf.replace(r#"<geom name="head" type="sphere""#, r#"<geom name="head" type="spherical""#);
+    let err = user_body(&dir, &xml, &builtin.map_text).err().unwrap();
+    let msg = err.to_string();
+    let SceneError::Mjcf { file, .. } = &err else { panic!("{msg}") };
+    assert!(file.ends_with("body.xml"), "names the user's file: {msg}");
+    assert!(msg.contains("line") && msg.contains("geom"), "MuJoCo's message with its line: {msg}");
+}
+
+#[test]
+fn a_body_map_naming_a_missing_joint_is_rejected() {
+    let dir = temp_dir("bad-map");
+    let builtin = BodyDef::humanoid();
+    let map = builtin.map_text.replace("\"left_knee\"", "\"left_kne\"");
+    let err = user_body(&dir, &builtin.mjcf, &map).err().unwrap();
+    let msg = err.to_string();
+    let SceneError::BodyMap { file, loc, .. } = &err else { panic!("{msg}") };
+    assert!(file.ends_with("body.map.ron"));
+    assert!(msg.contains("`left_kne` is not a joint"), "{msg}");
+    assert!(loc.is_some(), "located in the map: {msg}");
+
+    let unmapped = builtin.map_text.replace("\"left_ankle_x\",", "");
+    let msg = user_body(&dir, &builtin.mjcf, &unmapped).err().unwrap().to_string();
+    assert!(msg.contains("actuator `left_ankle_x` drives no joint listed"), "{msg}");
+}
+
+#[test]
+fn missing_files_are_named() {
+    let dir = temp_dir("missing");
+    let err = ScenarioFile::load(dir.join("nope.ron")).err().unwrap();
+    assert!(matches!(err, SceneError::Io { .. }) && err.to_string().contains("nope.ron"), "{err}");
+    let msg = load(&dir, BODY_SCENE).err().unwrap().to_string();
+    assert!(msg.contains("body.xml") && msg.contains("cannot read"), "{msg}");
+}
+
+#[test]
+fn the_builtin_scenario_and_the_shipped_file_agree() {
+    let shipped = ScenarioFile::load(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/sit.ron")).unwrap();
+    assert_eq!(shipped.scenario, ScenarioFile::builtin_default().scenario);
+}
