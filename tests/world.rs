@@ -199,4 +199,10 @@ fn parallel_steps_match_serial_steps() {
         assert_eq!(p.data().qpos(), s.data().qpos());
     }
     assert!(step_parallel(&mut par, &actions[1..]).is_err(), "a short action batch is an error");
+    let mut bad = actions.clone();
+    bad[3] = f64::NAN;
+    let before = par[0].data().qpos().to_vec();
+    let err = par[0].step(&bad[..dof]).unwrap_err().to_string();
+    assert!(err.contains("action 3") && err.contains("not a finite number"), "{err}");
+    assert_eq!(par[0].data().qpos(), &before[..], "a refused step leaves the world untouched");
 }

@@ -448,7 +448,8 @@ impl World {
     }
 
     /// One control tick: PD targets `action` (one per actuated joint, in map order; clipped to
-    /// each actuator's range) held for `physics_hz / control_hz` physics steps.
+    /// each actuator's range) held for `physics_hz / control_hz` physics steps. A wrong length or
+    /// a NaN action is an error and leaves the world untouched.
     pub fn step(&mut self, action: &[f64]) -> Result<()> {
         let joints = &self.shared.index.joints;
         if action.len() != joints.len() {
@@ -458,9 +459,12 @@ impl World {
                 joints.len()
             )));
         }
+        if let Some(k) = action.iter().position(|a| !a.is_finite()) {
+            return Err(SceneError::Usage(format!("step: action {k} ({}) is not a finite number", joints[k].name)));
+        }
         let ctrl = self.data.ctrl_mut();
         for (j, &a) in joints.iter().zip(action) {
-            ctrl[j.actuator] = if a.is_finite() { a.clamp(j.ctrl_range[0], j.ctrl_range[1]) } else { ctrl[j.actuator] };
+            ctrl[j.actuator] = a.clamp(j.ctrl_range[0], j.ctrl_range[1]);
         }
         for _ in 0..self.shared.substeps {
             self.data.step();

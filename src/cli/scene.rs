@@ -36,18 +36,22 @@ fn check(file: Option<PathBuf>) -> Result<()> {
     let scenario = super::load_scenario(file.as_ref())?;
     let model = Arc::new(WorldModel::build(scenario)?);
     let s = &model.scenario.scenario;
-    let mj = model.mj_model().ffi();
     let mass: f64 =
         model.mj_model().body_mass().iter().zip(&model.index.is_character).filter(|(_, c)| **c).map(|(m, _)| m).sum();
     let world = model.new_world();
-    let head = world.body_position(model.index.head)[2];
+    // Standing height: the top of the highest geom of the head body.
+    let mj = model.mj_model();
+    let height = (0..mj.ffi().ngeom as usize)
+        .filter(|&g| mj.geom_bodyid()[g] as usize == model.index.head)
+        .map(|g| world.data().geom_xpos()[g][2] + mj.geom_rbound()[g])
+        .fold(0.0, f64::max);
 
     println!("scenario  {} ({})", s.name, model.scenario.path.display());
     if !s.description.is_empty() {
         println!("          {}", s.description);
     }
     println!("body      {} (hash {})", model.body.mjcf_path.display(), model.body.content_hash());
-    println!("          {} actuated DoF, {:.1} kg, head centre at {:.2} m", model.index.dof(), mass, head);
+    println!("          {} actuated DoF, {:.1} kg, standing height {:.2} m", model.index.dof(), mass, height);
     println!("          joints: {}", model.index.joints.iter().map(|j| j.name.as_str()).collect::<Vec<_>>().join(" "));
     println!(
         "rates     physics {} Hz, control {} Hz ({} substeps), meta {} Hz",
@@ -58,11 +62,11 @@ fn check(file: Option<PathBuf>) -> Result<()> {
     );
     println!(
         "model     nbody {}, ngeom {}, nq {}, nv {}, nu {}, MuJoCo {}",
-        mj.nbody,
-        mj.ngeom,
-        mj.nq,
-        mj.nv,
-        mj.nu,
+        mj.nbody(),
+        mj.ngeom(),
+        mj.nq(),
+        mj.nv(),
+        mj.nu(),
         repertoire_scenes::mujoco_version()
     );
     println!("props     {}", s.props.len());
