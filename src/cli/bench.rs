@@ -16,6 +16,9 @@ pub enum BenchCommand {
         /// Physics steps per measurement.
         #[arg(long, default_value_t = 48_000)]
         steps: usize,
+        /// Repeats of each measurement; the fastest is reported.
+        #[arg(long, default_value_t = 3)]
+        repeats: usize,
         /// Thread counts to measure (default: 1, 2, ... up to the number of cores).
         #[arg(long, value_delimiter = ',')]
         threads: Vec<usize>,
@@ -24,7 +27,7 @@ pub enum BenchCommand {
 
 pub fn run(cmd: BenchCommand) -> Result<()> {
     match cmd {
-        BenchCommand::World { file, steps, threads } => {
+        BenchCommand::World { file, steps, repeats, threads } => {
             let model = Arc::new(WorldModel::build(super::load_scenario(file.as_ref())?)?);
             let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
             let threads = if threads.is_empty() {
@@ -35,9 +38,9 @@ pub fn run(cmd: BenchCommand) -> Result<()> {
             } else {
                 threads
             };
-            let b = bench_world(&model, steps, &threads);
+            let b = bench_world(&model, steps, repeats, &threads);
             println!(
-                "bench world: {} ({} physics steps per measurement, {} substeps per control tick, {cores} cores)",
+                "bench world: {} ({} physics steps per measurement, best of {repeats}, {} substeps per control tick, {cores} cores)",
                 model.scenario.path.display(),
                 steps,
                 b.substeps
