@@ -85,52 +85,7 @@ fn seeds_are_valid() {
     assert_eq!(clip.motion.frame_count(), 3);
 }
 
-/// Tokens that steer parsers into their less-travelled paths.
-const DICT: &[&str] = &[
-    "\n",
-    "\r\n",
-    " ",
-    "{",
-    "}",
-    "[",
-    "]",
-    ",",
-    ":",
-    "-",
-    ".",
-    "e",
-    "nan",
-    "inf",
-    "NaN",
-    "-Infinity",
-    "1e309",
-    "99999999999999999999",
-    "0",
-    "-0",
-    "JOINT x\n{\n",
-    "End Site",
-    "CHANNELS 6 ",
-    "CHANNELS 4 ",
-    "Xrotation ",
-    "Yposition ",
-    "OFFSET 1 2 3\n",
-    "ROOT",
-    "MOTION\n",
-    "Frames: 4294967295\n",
-    "Frame Time: 0\n",
-    ":bonedata\n",
-    "begin\n",
-    "end\n",
-    "dof rx ry rz\n",
-    "limits (-inf inf)\n",
-    ":hierarchy\n",
-    "root ",
-    "axis 0 0 0 ZYX\n",
-    "\"Frames\"",
-    "\"Loop\"",
-    "\\u12",
-    "\"",
-];
+include!("support/dict.rs");
 
 #[derive(Clone, Debug)]
 enum Edit {
