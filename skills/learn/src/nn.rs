@@ -1,0 +1,240 @@
+//! Run-time-sized layers on dfdx tensors: [`Linear`], the tanh [`Mlp`], and a tape-free
+//! [`MlpInference`] copy of an MLP for fast batched rollouts.
+//!
+//! dfdx 0.13's `nn::Linear<I, O>` takes its sizes as const generics; ours come from a RON config,
+//! so a layer here holds `Tensor<(usize, usize), f32, Cpu>` weights; models list their tensors
+//! through [`Parameters`].
+
+use dfdx::prelude::{Axis, BroadcastTo, Cpu, HasShape, Tape, Tensor, TensorFromVec, TryMatMul};
+use rand::Rng;
+
+/// A run-time-sized 2-D tensor on the CPU.
+pub type Matrix<T = dfdx::prelude::NoneTape> = Tensor<(usize, usize), f32, Cpu, T>;
+/// A run-time-sized 1-D tensor on the CPU.
+pub type Vector<T = dfdx::prelude::NoneTape> = Tensor<(usize,), f32, Cpu, T>;
+
+/// An affine layer `y = x·W + b` with `W` stored as `[in × out]`.
+#[derive(Clone, Debug)]
+pub struct Linear {
+    /// Weights, `[in × out]`.
+    pub weight: Matrix,
+    /// Bias, `[out]`.
+    pub bias: Vector,
+}
+
+impl Linear {
+    /// A layer with weights drawn from `U(-gain/√in, gain/√in)` and zero bias.
+    pub fn new(dev: &Cpu, inputs: usize, outputs: usize, gain: f32, rng: &mut impl Rng) -> Self {
+        let bound = gain / (inputs as f32).sqrt();
+        let w: Vec<f32> = (0..inputs * outputs).map(|_| rng.random_range(-bound..=bound)).collect();
+        Linear {
+            weight: dev.tensor_from_vec(w, (inputs, outputs)),
+            bias: dev.tensor_from_vec(vec![0.0; outputs], (outputs,)),
+        }
+    }
+
+    /// Input width.
+    pub fn inputs(&self) -> usize {
+        self.weight.shape().0
+    }
+
+    /// Output width.
+    pub fn outputs(&self) -> usize {
+        self.weight.shape().1
+    }
+
+    /// `x·W + b` for a batch `x: [B × in]`, recording on `x`'s tape if it has one.
+    pub fn forward<T: Tape<f32, Cpu>>(&self, x: Matrix<T>) -> Matrix<T> {
+        let batch = x.shape().0;
+        let shape = (batch, self.outputs());
+        let xw = x.matmul(self.weight.clone());
+        xw + self.bias.clone().broadcast_like::<_, Axis<0>>(&shape)
+    }
+}
+
+/// A mutable view of one trainable tensor: a matrix or a vector.
+#[derive(Debug)]
+pub enum ParamMut<'a> {
+    /// A 2-D weight.
+    Matrix(&'a mut Matrix),
+    /// A 1-D bias or log-std.
+    Vector(&'a mut Vector),
+}
+
+impl ParamMut<'_> {
+    /// The tensor's shape.
+    pub fn dims(&self) -> Vec<usize> {
+        match self {
+            ParamMut::Matrix(t) => vec![t.shape().0, t.shape().1],
+            ParamMut::Vector(t) => vec![t.shape().0],
+        }
+    }
+
+    /// A copy of the values, row-major.
+    pub fn values(&self) -> Vec<f32> {
+        match self {
+            ParamMut::Matrix(t) => t.as_vec(),
+            ParamMut::Vector(t) => t.as_vec(),
+        }
+    }
+
+    /// Overwrite the values (row-major; `src.len()` must equal the element count).
+    pub fn set_values(&mut self, src: &[f32]) {
+        match self {
+            ParamMut::Matrix(t) => t.copy_from(src),
+            ParamMut::Vector(t) => t.copy_from(src),
+        }
+    }
+}
+
+/// Anything that owns trainable tensors: lists them, in a fixed order, with stable names.
+///
+/// dfdx 0.13's `TensorCollection` cannot describe tensors of run-time shape (its
+/// `TensorOptions` is `#[non_exhaustive]` and every constructor needs `S: ConstShape`), so the
+/// optimiser, gradient clipping and checkpoints walk models through this trait instead.
+pub trait Parameters {
+    /// Every trainable tensor with its name, e.g. `("layers.0.weight", …)`.
+    fn params_mut(&mut self) -> Vec<(String, ParamMut<'_>)>;
+}
+
+impl Parameters for Linear {
+    fn params_mut(&mut self) -> Vec<(String, ParamMut<'_>)> {
+        vec![("weight".into(), ParamMut::Matrix(&mut self.weight)), ("bias".into(), ParamMut::Vector(&mut self.bias))]
+    }
+}
+
+/// Prefix every name of `inner` with `prefix.` (for nesting [`Parameters`]).
+pub fn prefixed<'a>(prefix: &str, inner: Vec<(String, ParamMut<'a>)>) -> Vec<(String, ParamMut<'a>)> {
+    inner.into_iter().map(|(n, p)| (format!("{prefix}.{n}"), p)).collect()
+}
+
+/// A multi-layer perceptron with tanh between layers and a linear output.
+#[derive(Clone, Debug)]
+pub struct Mlp {
+    /// The layers, input first.
+    pub layers: Vec<Linear>,
+}
+
+impl Mlp {
+    /// An MLP `inputs → hidden[0] → … → outputs`; the last layer's init is scaled by `out_gain`.
+    pub fn new(dev: &Cpu, inputs: usize, hidden: &[usize], outputs: usize, out_gain: f32, rng: &mut impl Rng) -> Self {
+        let mut widths = vec![inputs];
+        widths.extend_from_slice(hidden);
+        widths.push(outputs);
+        let n = widths.len() - 1;
+        let layers = (0..n)
+            .map(|i| {
+                let gain = if i + 1 == n { out_gain } else { 1.0 };
+                Linear::new(dev, widths[i], widths[i + 1], gain, rng)
+            })
+            .collect();
+        Mlp { layers }
+    }
+
+    /// Input width.
+    pub fn inputs(&self) -> usize {
+        self.layers[0].inputs()
+    }
+
+    /// Output width.
+    pub fn outputs(&self) -> usize {
+        self.layers[self.layers.len() - 1].outputs()
+    }
+
+    /// Forward a batch `[B × in] → [B × out]` on dfdx (records on `x`'s tape if it has one).
+    pub fn forward<T: Tape<f32, Cpu>>(&self, x: Matrix<T>) -> Matrix<T> {
+        let last = self.layers.len() - 1;
+        let mut h = x;
+        for (i, layer) in self.layers.iter().enumerate() {
+            h = layer.forward(h);
+            if i != last {
+                h = h.tanh();
+            }
+        }
+        h
+    }
+
+    /// A tape-free plain-`f32` copy of the current weights for rollouts.
+    pub fn inference(&self) -> MlpInference {
+        MlpInference {
+            layers: self.layers.iter().map(|l| (l.inputs(), l.outputs(), l.weight.as_vec(), l.bias.as_vec())).collect(),
+            scratch: [Vec::new(), Vec::new()],
+        }
+    }
+}
+
+impl Parameters for Mlp {
+    fn params_mut(&mut self) -> Vec<(String, ParamMut<'_>)> {
+        let mut out = Vec::new();
+        for (i, layer) in self.layers.iter_mut().enumerate() {
+            out.extend(prefixed(&format!("layers.{i}"), layer.params_mut()));
+        }
+        out
+    }
+}
+
+/// Plain-`f32` weights of an [`Mlp`] and scratch space: batched forward passes with no tape and no
+/// allocation once the scratch has grown to the batch size.
+#[derive(Clone, Debug)]
+pub struct MlpInference {
+    /// `(in, out, W [in × out], b [out])` per layer.
+    layers: Vec<(usize, usize, Vec<f32>, Vec<f32>)>,
+    scratch: [Vec<f32>; 2],
+}
+
+impl MlpInference {
+    /// Output width.
+    pub fn outputs(&self) -> usize {
+        self.layers.last().map_or(0, |l| l.1)
+    }
+
+    /// Forward `x: [B × in]` into `out: [B × out]`.
+    pub fn forward(&mut self, x: &[f32], out: &mut [f32]) {
+        let n_layers = self.layers.len();
+        let batch = x.len() / self.layers[0].0;
+        let [a, b] = &mut self.scratch;
+        a.clear();
+        a.extend_from_slice(x);
+        for (i, (inputs, outputs, w, bias)) in self.layers.iter().enumerate() {
+            b.clear();
+            b.resize(batch * outputs, 0.0);
+            for r in 0..batch {
+                let xr = &a[r * inputs..(r + 1) * inputs];
+                let yr = &mut b[r * outputs..(r + 1) * outputs];
+                yr.copy_from_slice(bias);
+                for (k, &xk) in xr.iter().enumerate() {
+                    let wk = &w[k * outputs..(k + 1) * outputs];
+                    for (y, &wkj) in yr.iter_mut().zip(wk) {
+                        *y += xk * wkj;
+                    }
+                }
+                if i + 1 != n_layers {
+                    yr.iter_mut().for_each(|y| *y = y.tanh());
+                }
+            }
+            std::mem::swap(a, b);
+        }
+        out.copy_from_slice(&a[..out.len()]);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+
+    #[test]
+    fn inference_matches_dfdx_forward() {
+        let dev = Cpu::default();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
+        let mlp = Mlp::new(&dev, 5, &[16, 8], 3, 1.0, &mut rng);
+        let x: Vec<f32> = (0..20).map(|i| (i as f32 * 0.37).sin()).collect();
+        let y = mlp.forward(dev.tensor_from_vec(x.clone(), (4, 5))).as_vec();
+        let mut fast = mlp.inference();
+        let mut out = vec![0.0; 12];
+        fast.forward(&x, &mut out);
+        for (a, b) in y.iter().zip(&out) {
+            assert!((a - b).abs() < 1e-5, "{a} vs {b}");
+        }
+    }
+}

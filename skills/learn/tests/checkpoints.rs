@@ -1,0 +1,158 @@
+//! Checkpoints round-trip, resume bit-for-bit, and refuse damaged or mismatched files.
+
+mod common;
+
+use std::path::PathBuf;
+
+use repertoire_learn::checkpoint::{self, CheckpointError};
+use repertoire_learn::env::Env;
+use repertoire_learn::nn::Parameters;
+use repertoire_learn::ppo::{IterationMetrics, Ppo};
+use repertoire_learn::run_dir::RunDir;
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("repertoire-learn-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("create temp dir");
+    dir
+}
+
+/// Weights, Adam moments, observation mean, next observations.
+type Fingerprint = (Vec<Vec<f32>>, Vec<(Vec<f32>, Vec<f32>)>, Vec<f64>, Vec<f32>);
+
+/// Every number that defines where training stands.
+fn fingerprint<E: Env>(ppo: &mut Ppo<E>) -> Fingerprint {
+    let weights = ppo.agent.params_mut().iter().map(|(_, p)| p.values()).collect();
+    (weights, ppo.optimizer.moments(), ppo.obs_rms.mean.clone(), ppo.next_obs.clone())
+}
+
+/// Metrics without the wall-clock fields.
+fn comparable(m: &IterationMetrics) -> IterationMetrics {
+    IterationMetrics { samples_per_sec: 0.0, env_time_fraction: 0.0, ..m.clone() }
+}
+
+#[test]
+fn resume_continues_bit_for_bit() {
+    let dir = temp_dir("resume");
+    let cfg = common::tiny_config(4);
+    let k = 3;
+
+    let mut straight = Ppo::new(cfg.clone(), common::cartpoles(4));
+    let mut straight_metrics = Vec::new();
+    straight.train(2 * k, |m| straight_metrics.push(comparable(m)));
+
+    let mut first = Ppo::new(cfg.clone(), common::cartpoles(4));
+    first.train(k, |_| {});
+    let stem = dir.join("ckpt");
+    checkpoint::save(&mut first, &stem).expect("save");
+    drop(first);
+    let mut resumed = checkpoint::load(&stem, common::cartpoles(4)).expect("load");
+    let mut resumed_metrics = Vec::new();
+    resumed.train(k, |m| resumed_metrics.push(comparable(m)));
+
+    assert_eq!(resumed.iteration, 2 * k);
+    assert_eq!(resumed.global_step, straight.global_step);
+    assert_eq!(fingerprint(&mut resumed), fingerprint(&mut straight));
+    // NaN-free comparison of the metrics of the last k iterations.
+    let as_text = |v: &[IterationMetrics]| format!("{v:?}");
+    assert_eq!(as_text(&resumed_metrics), as_text(&straight_metrics[k..]));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn parallel_and_serial_stepping_agree() {
+    let mut cfg = common::tiny_config(4);
+    cfg.parallel_envs = true;
+    let mut par = Ppo::new(cfg.clone(), common::cartpoles(4));
+    par.train(2, |_| {});
+    cfg.parallel_envs = false;
+    let mut ser = Ppo::new(cfg, common::cartpoles(4));
+    ser.train(2, |_| {});
+    assert_eq!(fingerprint(&mut par), fingerprint(&mut ser));
+}
+
+#[test]
+fn round_trip_and_refusals() {
+    let dir = temp_dir("refuse");
+    let cfg = common::tiny_config(2);
+    let drift = |d| (0..2).map(|_| common::Drift::new(d)).collect::<Vec<_>>();
+    let mut ppo = Ppo::new(cfg.clone(), drift(3));
+    ppo.train(1, |_| {});
+    let stem = dir.join("ok");
+    let manifest = checkpoint::save(&mut ppo, &stem).expect("save");
+    assert!(!dir.join("ok.safetensors.partial").exists() && !dir.join("ok.ron.partial").exists());
+
+    // Round trip.
+    let mut back = checkpoint::load(&stem, drift(3)).expect("load");
+    assert_eq!(fingerprint(&mut back), fingerprint(&mut ppo));
+    assert_eq!(back.iteration, 1);
+    let m = checkpoint::read_manifest(&manifest).expect("manifest");
+    assert_eq!((m.obs_dim, m.act_dim, m.num_envs), (3, 1, 2));
+
+    // Different observation size.
+    let err = checkpoint::load(&stem, drift(4)).err().expect("refused");
+    assert!(matches!(err, CheckpointError::Mismatch { .. }), "{err}");
+    eprintln!("mismatch: {err}");
+    let text = err.to_string();
+    assert!(
+        text.contains("ok.ron") && text.contains("observation size") && text.contains('3') && text.contains('4'),
+        "{text}"
+    );
+
+    // Truncated weights.
+    let weights = dir.join("ok.safetensors");
+    let good = std::fs::read(&weights).expect("read");
+    std::fs::write(&weights, &good[..good.len() / 2]).expect("write");
+    let err = checkpoint::load(&stem, drift(3)).err().expect("refused");
+    assert!(matches!(err, CheckpointError::Corrupt { .. }), "{err}");
+    assert!(err.to_string().contains("ok.safetensors"), "{err}");
+    eprintln!("truncated: {err}");
+
+    // One flipped byte.
+    let mut bad = good.clone();
+    let last = bad.len() - 1;
+    bad[last] ^= 0x40;
+    std::fs::write(&weights, &bad).expect("write");
+    let err = checkpoint::load(&stem, drift(3)).err().expect("refused");
+    assert!(matches!(err, CheckpointError::Corrupt { .. }), "{err}");
+    std::fs::write(&weights, &good).expect("write");
+
+    // Truncated manifest.
+    let text = std::fs::read_to_string(&manifest).expect("read");
+    std::fs::write(&manifest, &text[..text.len() / 2]).expect("write");
+    let err = checkpoint::load(&stem, drift(3)).err().expect("refused");
+    assert!(matches!(err, CheckpointError::Manifest { .. }), "{err}");
+    assert!(err.to_string().contains("ok.ron"), "{err}");
+    eprintln!("manifest: {err}");
+
+    // Missing file.
+    let err = checkpoint::load(&dir.join("absent"), drift(3)).err().expect("refused");
+    assert!(matches!(err, CheckpointError::Io { .. }), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn run_directory_records_config_and_metrics() {
+    let dir = temp_dir("run");
+    let cfg = common::tiny_config(2);
+    let mut run = RunDir::create(&dir, &cfg).expect("run dir");
+    let mut ppo = Ppo::new(cfg, common::cartpoles(2));
+    ppo.train(2, |m| run.log(m).expect("log"));
+    let stem = run.checkpoint_stem(ppo.iteration);
+    checkpoint::save(&mut ppo, &stem).expect("save");
+
+    let info = std::fs::read_to_string(dir.join("run.ron")).expect("run.ron");
+    assert!(info.contains("seed: 7") && info.contains("git_hash"), "{info}");
+    let csv = std::fs::read_to_string(dir.join("metrics.csv")).expect("csv");
+    let lines: Vec<&str> = csv.lines().collect();
+    assert_eq!(lines.len(), 3);
+    assert!(lines[0].starts_with("iteration,global_step") && lines[0].ends_with("term_alive,term_effort"));
+    assert_eq!(lines[0].split(',').count(), lines[1].split(',').count());
+    let jsonl = std::fs::read_to_string(dir.join("metrics.jsonl")).expect("jsonl");
+    assert_eq!(jsonl.lines().count(), 2);
+    let row: serde_json::Value = serde_json::from_str(jsonl.lines().nth(1).expect("line")).expect("json");
+    assert_eq!(row["iteration"], 2);
+    assert!(dir.join("checkpoints/iter-000002.ron").exists());
+    assert!(dir.join("checkpoints/iter-000002.safetensors").exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}
