@@ -52,6 +52,9 @@ pub struct PropIndex {
     pub built_height: f64,
 }
 
+/// Numbers per prop placement in a [`World::snapshot`].
+const PLACEMENT_LEN: usize = 7;
+
 /// A prop's placement in the current episode.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PropPlacement {
@@ -435,6 +438,94 @@ impl World {
         self.data.qvel_mut().copy_from_slice(qvel);
         self.hold_pose();
         self.data.forward();
+        Ok(())
+    }
+
+    /// Length of [`World::snapshot`]'s output for this scene.
+    pub fn snapshot_len(&self) -> usize {
+        let d = &self.data;
+        1 + d.qpos().len()
+            + 2 * d.qvel().len()
+            + d.act().len()
+            + d.ctrl().len()
+            + 7 * d.mocap_pos().len()
+            + PLACEMENT_LEN * self.placements.len()
+    }
+
+    /// Everything that decides this world's future, as numbers: time, qpos, qvel, activations,
+    /// PD targets, the solver's warm start, mocap poses and the props' placements (with free
+    /// props' drawn sizes and masses). [`World::restore`] of it makes the next steps identical.
+    pub fn snapshot(&self, out: &mut Vec<f64>) {
+        let d = &self.data;
+        out.clear();
+        out.push(d.time());
+        out.extend_from_slice(d.qpos());
+        out.extend_from_slice(d.qvel());
+        out.extend_from_slice(d.act());
+        out.extend_from_slice(d.ctrl());
+        out.extend_from_slice(d.qacc_warmstart());
+        out.extend(d.mocap_pos().iter().flatten());
+        out.extend(d.mocap_quat().iter().flatten());
+        for p in &self.placements {
+            out.extend_from_slice(&p.pos);
+            out.extend_from_slice(&[p.yaw, p.top, p.scale, p.mass]);
+        }
+    }
+
+    /// Restores a [`World::snapshot`]; a snapshot of another scene (wrong length) or holding a
+    /// NaN is refused and leaves the world untouched.
+    pub fn restore(&mut self, state: &[f64]) -> Result<()> {
+        if state.len() != self.snapshot_len() {
+            return Err(SceneError::Usage(format!(
+                "restore: the snapshot has {} values, this scene needs {}",
+                state.len(),
+                self.snapshot_len()
+            )));
+        }
+        if let Some(k) = state.iter().position(|v| !v.is_finite()) {
+            return Err(SceneError::Usage(format!("restore: snapshot value {k} is not a finite number")));
+        }
+        let mut rest = state;
+        let mut take = |n: usize| {
+            let (head, tail) = rest.split_at(n);
+            rest = tail;
+            head
+        };
+        let nv = self.data.qvel().len();
+        let time = take(1)[0];
+        self.data.set_time(time);
+        let n = self.data.qpos().len();
+        self.data.qpos_mut().copy_from_slice(take(n));
+        self.data.qvel_mut().copy_from_slice(take(nv));
+        let n = self.data.act().len();
+        self.data.act_mut().copy_from_slice(take(n));
+        let n = self.data.ctrl().len();
+        self.data.ctrl_mut().copy_from_slice(take(n));
+        let warm = take(nv);
+        let nmocap = self.data.mocap_pos().len();
+        for (dst, src) in self.data.mocap_pos_mut().iter_mut().zip(take(3 * nmocap).chunks(3)) {
+            dst.copy_from_slice(src);
+        }
+        for (dst, src) in self.data.mocap_quat_mut().iter_mut().zip(take(4 * nmocap).chunks(4)) {
+            dst.copy_from_slice(src);
+        }
+        let mut rescale = Vec::new();
+        for (i, src) in take(PLACEMENT_LEN * self.placements.len()).chunks(PLACEMENT_LEN).enumerate() {
+            let p =
+                PropPlacement { pos: [src[0], src[1], src[2]], yaw: src[3], top: src[4], scale: src[5], mass: src[6] };
+            if let Prop::Box(_) | Prop::Ball(_) = self.shared.scenario.scenario.props[i] {
+                let current = self.placements[i];
+                if (p.scale, p.mass) != (current.scale, current.mass) || self.owns_model {
+                    rescale.push((self.shared.props[i].body, p.scale, p.mass));
+                }
+            }
+            self.placements[i] = p;
+        }
+        if !rescale.is_empty() {
+            self.rescale_free_props(&rescale);
+        }
+        self.data.forward();
+        self.data.qacc_warmstart_mut().copy_from_slice(warm);
         Ok(())
     }
 

@@ -1,9 +1,13 @@
-//! `repertoire bench world FILE`.
+//! `repertoire bench world [FILE]` and `repertoire bench ppo [FILE]`.
 
 use anyhow::Result;
 use clap::Subcommand;
-use repertoire_scenes::WorldModel;
+use repertoire_humanoid::{HumanoidEnv, Locomotion};
+use repertoire_learn::bench::bench_ppo;
+use repertoire_learn::policy::PolicyConfig;
+use repertoire_learn::ppo::PpoConfig;
 use repertoire_scenes::bench::bench_world;
+use repertoire_scenes::{Feature, ObservationLayout, WorldModel};
 use std::path::PathBuf;
 use std::sync::Arc;
 
@@ -23,7 +27,37 @@ pub enum BenchCommand {
         #[arg(long, value_delimiter = ',')]
         threads: Vec<usize>,
     },
+    /// End-to-end PPO samples/s on the humanoid (Humanoid-v5's locomotion reward), beside the
+    /// raw mj_step ceiling of the same model and the SB3 reference.
+    Ppo {
+        /// Scenario RON file (default: the built-in scenes/sit.ron).
+        file: Option<PathBuf>,
+        /// Parallel environments.
+        #[arg(long, default_value_t = 32)]
+        envs: usize,
+        /// Rollout length per environment per iteration.
+        #[arg(long, default_value_t = 64)]
+        steps: usize,
+        /// Timed PPO iterations (after one warm-up iteration).
+        #[arg(long, default_value_t = 5)]
+        iters: usize,
+        /// Hidden widths of the policy and value MLPs.
+        #[arg(long, value_delimiter = ',', default_value = "256,256")]
+        hidden: Vec<usize>,
+        /// Epochs over each rollout.
+        #[arg(long, default_value_t = 5)]
+        epochs: usize,
+        /// Minibatches per epoch.
+        #[arg(long, default_value_t = 4)]
+        minibatches: usize,
+        /// Physics steps for the raw mj_step ceiling measurement.
+        #[arg(long, default_value_t = 24_000)]
+        physics_steps: usize,
+    },
 }
+
+/// SB3 PPO on Gymnasium Humanoid-v5, measured on this machine class (samples/s, low and high).
+const SB3_HUMANOID: (f64, f64) = (770.0, 894.0);
 
 pub fn run(cmd: BenchCommand) -> Result<()> {
     match cmd {
@@ -57,6 +91,63 @@ pub fn run(cmd: BenchCommand) -> Result<()> {
                     println!("scaling {k} threads / 1 thread: {:.2}×", rate / one);
                 }
             }
+            Ok(())
+        }
+        BenchCommand::Ppo { file, envs, steps, iters, hidden, epochs, minibatches, physics_steps } => {
+            let model = Arc::new(WorldModel::build(super::load_scenario(file.as_ref())?)?);
+            let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+            let layout = Arc::new(ObservationLayout::new(&model, &Feature::proprioception())?);
+            let make = |_| HumanoidEnv::with_layout(&model, Arc::clone(&layout), Locomotion::default(), 1000);
+            let cfg = PpoConfig {
+                num_envs: envs,
+                num_steps: steps,
+                num_iterations: iters + 1,
+                update_epochs: epochs,
+                num_minibatches: minibatches,
+                policy: PolicyConfig {
+                    policy_hidden: hidden.clone(),
+                    value_hidden: hidden.clone(),
+                    ..Default::default()
+                },
+                ..PpoConfig::default()
+            };
+            let ceiling = bench_world(&model, physics_steps, 3, &[1, cores]);
+            let r = bench_ppo(cfg, (0..envs).map(make).collect(), iters);
+            let per_tick = ceiling.substeps as f64;
+            let raw_ctrl = ceiling.raw / per_tick;
+            let all_ctrl = ceiling.threads.last().map_or(raw_ctrl, |(_, s)| s / per_tick);
+            let od = layout.size;
+            println!(
+                "bench ppo: {} | humanoid, {} actuated joints, obs {od}, MLP {hidden:?} (policy and value) | {envs} envs × {steps} steps, {epochs} epochs × {minibatches} minibatches | {} timed iterations, {cores} cores",
+                model.scenario.path.display(),
+                model.index.dof(),
+                r.iterations
+            );
+            println!(
+                "| measure | samples/s (control steps) | vs SB3 Humanoid-v5 ({:.0}–{:.0}) |",
+                SB3_HUMANOID.0, SB3_HUMANOID.1
+            );
+            println!("|---|---:|---:|");
+            let vs = |x: f64| format!("{:.1}–{:.1}×", x / SB3_HUMANOID.1, x / SB3_HUMANOID.0);
+            println!(
+                "| raw mj_step ceiling, 1 thread ({} physics steps per sample) | {raw_ctrl:.0} | {} |",
+                ceiling.substeps,
+                vs(raw_ctrl)
+            );
+            println!("| World::step ceiling, {cores} threads | {all_ctrl:.0} | {} |", vs(all_ctrl));
+            println!("| PPO end to end (rollout + update) | {:.0} | {} |", r.samples_per_sec, vs(r.samples_per_sec));
+            println!(
+                "physics share of PPO wall time: {:.0}% (env stepping on {cores} threads); PPO reaches {:.0}% of the {cores}-thread stepping ceiling",
+                100.0 * r.env_time_fraction,
+                100.0 * r.samples_per_sec / all_ctrl
+            );
+            println!(
+                "rollout forward pass [{} × {od}]: {:.0} µs plain f32, {:.0} µs dfdx ({:.1}×)",
+                r.batch,
+                r.forward_plain_us,
+                r.forward_dfdx_us,
+                r.forward_dfdx_us / r.forward_plain_us
+            );
             Ok(())
         }
     }

@@ -7,6 +7,7 @@ use std::time::Instant;
 use dfdx::prelude::*;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::env::{Env, EpisodeStats, VecEnv};
@@ -62,6 +63,9 @@ pub struct PpoConfig {
     pub normalize_reward: bool,
     /// Step environments on rayon's pool (results are identical either way).
     pub parallel_envs: bool,
+    /// Each minibatch's gradient is computed in this many shards on rayon's pool and summed in
+    /// a fixed order, so results depend on this number but not on the number of threads.
+    pub grad_shards: usize,
     /// Network sizes.
     pub policy: PolicyConfig,
 }
@@ -89,6 +93,7 @@ impl Default for PpoConfig {
             normalize_obs: true,
             normalize_reward: true,
             parallel_envs: true,
+            grad_shards: 2,
             policy: PolicyConfig::default(),
         }
     }
@@ -415,56 +420,40 @@ impl<E: Env> Ppo<E> {
         }
     }
 
-    /// One gradient step on the samples `mb`. Returns
-    /// `[policy loss, value loss, approx KL, clip fraction, entropy, grad norm]`.
+    /// One gradient step on the samples `mb`. The minibatch is cut into `grad_shards` equal
+    /// parts whose losses (each weighted by its share of the rows) are differentiated on rayon's
+    /// pool and whose gradients are summed in shard order, so the result does not depend on the
+    /// number of threads. Returns `[policy loss, value loss, approx KL, clip fraction, entropy,
+    /// grad norm]`.
     fn minibatch_step(&mut self, mb: &[usize], advantages: &[f32], returns: &[f32], od: usize, ad: usize) -> [f32; 6] {
-        let cfg = &self.cfg;
-        let b = &self.buf;
         let m = mb.len();
-        let gather = |src: &[f32], w: usize| -> Vec<f32> {
-            mb.iter().flat_map(|&k| &src[k * w..(k + 1) * w]).copied().collect()
-        };
-        let mut adv = gather(advantages, 1);
-        if cfg.norm_adv && m > 1 {
+        let mut adv: Vec<f32> = mb.iter().map(|&k| advantages[k]).collect();
+        if self.cfg.norm_adv && m > 1 {
             let mean = adv.iter().sum::<f32>() / m as f32;
             let var = adv.iter().map(|a| (a - mean).powi(2)).sum::<f32>() / (m - 1) as f32;
             adv.iter_mut().for_each(|a| *a = (*a - mean) / (var.sqrt() + 1e-8));
         }
-        let dev = &self.dev;
-        let obs = dev.tensor_from_vec(gather(&b.obs, od), (m, od));
-        let actions = dev.tensor_from_vec(gather(&b.actions, ad), (m, ad));
-        let old_log_prob = dev.tensor_from_vec(gather(&b.log_probs, 1), (m,));
-        let old_values = dev.tensor_from_vec(gather(&b.values, 1), (m,));
-        let returns = dev.tensor_from_vec(gather(returns, 1), (m,));
-        let adv = dev.tensor_from_vec(adv, (m,));
-
-        // Policy: ratio r = π(a|s) / π_old(a|s); clipped surrogate max(−A·r, −A·clip(r, 1±ε)).
-        let (new_log_prob, entropy) = self.agent.policy.log_prob_entropy(obs.leaky_trace(), &actions);
-        let log_ratio = new_log_prob - old_log_prob;
-        let (kl, clip_frac) = ratio_stats(&log_ratio.as_vec(), cfg.clip_coef);
-        let ratio = log_ratio.exp();
-        let pg1 = ratio.with_empty_tape() * adv.clone().negate();
-        let pg2 = ratio.clamp(1.0 - cfg.clip_coef, 1.0 + cfg.clip_coef) * adv.negate();
-        let pg_loss = pg1.maximum(pg2).mean();
-
-        // Value: ½(V − R)², optionally the max with the loss of V clipped to V_old ± ε.
-        let new_values = self.agent.value.forward(obs.leaky_trace());
-        let v_loss = if cfg.clip_vloss {
-            let unclipped = (new_values.with_empty_tape() - returns.clone()).square();
-            let clipped = (new_values - old_values.clone()).clamp(-cfg.clip_coef, cfg.clip_coef) + old_values;
-            let clipped = (clipped - returns).square();
-            unclipped.maximum(clipped).mean() * 0.5
-        } else {
-            (new_values - returns).square().mean() * 0.5
-        };
-
-        let entropy = entropy.mean();
-        let stats = [pg_loss.as_vec()[0], v_loss.as_vec()[0], entropy.as_vec()[0]];
-        let loss = pg_loss - entropy * cfg.ent_coef + v_loss * cfg.vf_coef;
-        let mut grads = loss.backward();
-        let grad_norm = clip_grad_norm(&mut self.agent, &mut grads, cfg.max_grad_norm);
+        let shard_len = m.div_ceil(self.cfg.grad_shards.clamp(1, m.max(1)));
+        let shards: Vec<(&[usize], &[f32])> = mb.chunks(shard_len).zip(adv.chunks(shard_len)).collect();
+        let (agent, cfg, buf, dev) = (&self.agent, &self.cfg, &self.buf, &self.dev);
+        let results: Vec<(Gradients<f32, Cpu>, [f32; 5])> = shards
+            .par_iter()
+            .map(|(rows, adv)| {
+                let batch = Shard { rows, adv, returns, od, ad, weight: rows.len() as f32 / m as f32 };
+                shard_loss(agent, cfg, buf, dev, &batch)
+            })
+            .collect();
+        let mut results = results.into_iter();
+        let (mut grads, mut stats) = results.next().expect("a minibatch has at least one shard");
+        for (mut g, s) in results {
+            add_grads(&mut self.agent, &mut grads, &mut g);
+            for (acc, v) in stats.iter_mut().zip(s) {
+                *acc += v;
+            }
+        }
+        let grad_norm = clip_grad_norm(&mut self.agent, &mut grads, self.cfg.max_grad_norm);
         self.optimizer.update(&mut self.agent, &mut grads);
-        [stats[0], stats[1], kl, clip_frac, stats[2], grad_norm]
+        [stats[0], stats[1], stats[3], stats[4], stats[2], grad_norm]
     }
 
     /// Fill the episode statistics of `m` from the episodes that ended.
@@ -509,6 +498,78 @@ impl<E: Env> Ppo<E> {
         }
         let done = &envs.finished[..episodes];
         done.iter().map(|e| e.ret).sum::<f32>() / episodes as f32
+    }
+}
+
+/// The rows of one gradient shard and what its loss needs.
+struct Shard<'a> {
+    rows: &'a [usize],
+    /// Normalised advantages of `rows`.
+    adv: &'a [f32],
+    returns: &'a [f32],
+    od: usize,
+    ad: usize,
+    /// The shard's share of the minibatch's rows (its loss is scaled by it).
+    weight: f32,
+}
+
+/// The PPO loss on one shard, differentiated: the gradients and, each scaled by the shard's
+/// weight, `[policy loss, value loss, entropy, approx KL, clip fraction]`.
+fn shard_loss(
+    agent: &ActorCritic,
+    cfg: &PpoConfig,
+    b: &Rollout,
+    dev: &Cpu,
+    s: &Shard<'_>,
+) -> (Gradients<f32, Cpu>, [f32; 5]) {
+    let m = s.rows.len();
+    let gather = |src: &[f32], w: usize| -> Vec<f32> {
+        s.rows.iter().flat_map(|&k| &src[k * w..(k + 1) * w]).copied().collect()
+    };
+    let obs = dev.tensor_from_vec(gather(&b.obs, s.od), (m, s.od));
+    let actions = dev.tensor_from_vec(gather(&b.actions, s.ad), (m, s.ad));
+    let old_log_prob = dev.tensor_from_vec(gather(&b.log_probs, 1), (m,));
+    let old_values = dev.tensor_from_vec(gather(&b.values, 1), (m,));
+    let returns = dev.tensor_from_vec(gather(s.returns, 1), (m,));
+    let adv = dev.tensor_from_vec(s.adv.to_vec(), (m,));
+
+    // Policy: ratio r = π(a|s) / π_old(a|s); clipped surrogate max(−A·r, −A·clip(r, 1±ε)).
+    let (new_log_prob, entropy) = agent.policy.log_prob_entropy(obs.leaky_trace(), &actions);
+    let log_ratio = new_log_prob - old_log_prob;
+    let (kl, clip_frac) = ratio_stats(&log_ratio.as_vec(), cfg.clip_coef);
+    let ratio = log_ratio.exp();
+    let pg1 = ratio.with_empty_tape() * adv.clone().negate();
+    let pg2 = ratio.clamp(1.0 - cfg.clip_coef, 1.0 + cfg.clip_coef) * adv.negate();
+    let pg_loss = pg1.maximum(pg2).mean();
+
+    // Value: ½(V − R)², optionally the max with the loss of V clipped to V_old ± ε.
+    let new_values = agent.value.forward(obs.leaky_trace());
+    let v_loss = if cfg.clip_vloss {
+        let unclipped = (new_values.with_empty_tape() - returns.clone()).square();
+        let clipped = (new_values - old_values.clone()).clamp(-cfg.clip_coef, cfg.clip_coef) + old_values;
+        let clipped = (clipped - returns).square();
+        unclipped.maximum(clipped).mean() * 0.5
+    } else {
+        (new_values - returns).square().mean() * 0.5
+    };
+
+    let entropy = entropy.mean();
+    let w = s.weight;
+    let stats = [pg_loss.as_vec()[0] * w, v_loss.as_vec()[0] * w, entropy.as_vec()[0] * w, kl * w, clip_frac * w];
+    let loss = (pg_loss - entropy * cfg.ent_coef + v_loss * cfg.vf_coef) * w;
+    (loss.backward(), stats)
+}
+
+/// `into += from`, tensor by tensor over `model`'s parameters.
+fn add_grads(model: &mut impl Parameters, into: &mut Gradients<f32, Cpu>, from: &mut Gradients<f32, Cpu>) {
+    for (_, p) in model.params_mut() {
+        let (a, b) = match &p {
+            ParamMut::Matrix(t) => (into.get_or_alloc_mut(&**t), from.get_or_alloc_mut(&**t)),
+            ParamMut::Vector(t) => (into.get_or_alloc_mut(&**t), from.get_or_alloc_mut(&**t)),
+        };
+        let (a, b) =
+            (a.expect("the CPU device cannot fail to allocate"), b.expect("the CPU device cannot fail to allocate"));
+        a.iter_mut().zip(b.iter()).for_each(|(x, y)| *x += y);
     }
 }
 

@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use repertoire_learn::checkpoint::{self, CheckpointError};
 use repertoire_learn::env::Env;
 use repertoire_learn::nn::Parameters;
-use repertoire_learn::ppo::{IterationMetrics, Ppo};
+use repertoire_learn::ppo::{IterationMetrics, Ppo, PpoConfig};
 use repertoire_learn::run_dir::RunDir;
 
 fn temp_dir(name: &str) -> PathBuf {
@@ -155,4 +155,24 @@ fn run_directory_records_config_and_metrics() {
     assert!(dir.join("checkpoints/iter-000002.ron").exists());
     assert!(dir.join("checkpoints/iter-000002.safetensors").exists());
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn sharded_gradients_match_the_whole_minibatch() {
+    // The same iteration with the minibatch gradient taken whole and in three shards: the
+    // weights may differ only by float rounding of the sum.
+    let mut whole = Ppo::new(PpoConfig { grad_shards: 1, ..common::tiny_config(4) }, common::cartpoles(4));
+    let mut sharded = Ppo::new(PpoConfig { grad_shards: 3, ..common::tiny_config(4) }, common::cartpoles(4));
+    whole.train(1, |_| {});
+    sharded.train(1, |_| {});
+    let (a, b) = (fingerprint(&mut whole).0, fingerprint(&mut sharded).0);
+    let mut max_diff = 0.0f32;
+    let mut moved = 0.0f32;
+    let start = fingerprint(&mut Ppo::new(common::tiny_config(4), common::cartpoles(4))).0;
+    for ((x, y), s) in a.iter().flatten().zip(b.iter().flatten()).zip(start.iter().flatten()) {
+        max_diff = max_diff.max((x - y).abs());
+        moved = moved.max((x - s).abs());
+    }
+    assert!(moved > 1e-4, "the update moved the weights ({moved})");
+    assert!(max_diff < 1e-5 * moved.max(1.0), "sharded and whole updates differ by {max_diff}");
 }
