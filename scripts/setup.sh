@@ -1,7 +1,11 @@
 #!/usr/bin/env bash
-# Sets up a fresh machine for Repertoire: fetches the MuJoCo 3.17.0 C library from the `mujoco`
-# wheel on PyPI (the only network access) and unpacks it into third_party/mujoco/lib, which
-# .cargo/config.toml points mujoco-rs at. Re-running it is a no-op once the library is in place.
+# Sets up a fresh machine for Repertoire, from PyPI only (the only network access):
+#  1. the MuJoCo 3.17.0 C library from the `mujoco` wheel, into third_party/mujoco/lib, which
+#     .cargo/config.toml points mujoco-rs at;
+#  2. the clip pack, into third_party/clips: the DeepMimic-format walk and turn cycles shipped in
+#     the `pybullet` 3.2.7 wheel (pybullet_data/data/motions) and the sit-down/stand-up BVH in the
+#     `bvhtoolbox` 0.1.3 sdist (tests/example_files), each checked against its SHA-256.
+# Re-running it is a no-op once both are in place.
 set -euo pipefail
 
 MUJOCO_VERSION=3.17.0
@@ -9,7 +13,8 @@ root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 lib_dir="$root/third_party/mujoco/lib"
 lib="$lib_dir/libmujoco.so.$MUJOCO_VERSION"
 
-if [ -f "$lib" ] && [ -L "$lib_dir/libmujoco.so" ]; then
+clips_dir="$root/third_party/clips"
+if [ -f "$lib" ] && [ -L "$lib_dir/libmujoco.so" ] && [ -f "$clips_dir/.complete" ]; then
   exit 0
 fi
 
@@ -20,11 +25,13 @@ py="$(command -v python3 || command -v python || true)"
 
 tmp="$(mktemp -d)"
 trap 'rm -rf "$tmp"' EXIT
-echo "setup: fetching MuJoCo $MUJOCO_VERSION from PyPI (wheel 'mujoco==$MUJOCO_VERSION')" >&2
-# The shared library inside is the same for every CPython tag, so any wheel for this platform serves.
-"$py" -m pip download --quiet --no-deps --only-binary=:all: --dest "$tmp" "mujoco==$MUJOCO_VERSION"
-wheel="$(ls "$tmp"/mujoco-"$MUJOCO_VERSION"-*.whl | head -n 1)"
-"$py" - "$wheel" "$tmp/out" "$MUJOCO_VERSION" <<'PY'
+
+if [ ! -f "$lib" ] || [ ! -L "$lib_dir/libmujoco.so" ]; then
+  echo "setup: fetching MuJoCo $MUJOCO_VERSION from PyPI (wheel 'mujoco==$MUJOCO_VERSION')" >&2
+  # The shared library inside is the same for every CPython tag, so any wheel for this platform serves.
+  "$py" -m pip download --quiet --no-deps --only-binary=:all: --dest "$tmp" "mujoco==$MUJOCO_VERSION"
+  wheel="$(ls "$tmp"/mujoco-"$MUJOCO_VERSION"-*.whl | head -n 1)"
+  "$py" - "$wheel" "$tmp/out" "$MUJOCO_VERSION" <<'PY'
 import sys, zipfile, pathlib
 wheel, out, version = sys.argv[1], pathlib.Path(sys.argv[2]), sys.argv[3]
 name = f"mujoco/libmujoco.so.{version}"
@@ -35,9 +42,61 @@ with zipfile.ZipFile(wheel) as z:
     (out / f"libmujoco.so.{version}").write_bytes(z.read(name))
 PY
 
-mkdir -p "$lib_dir"
-# Move into place last, so an interrupted run never leaves a half-written library behind.
-mv "$tmp/out/libmujoco.so.$MUJOCO_VERSION" "$lib.partial"
-mv "$lib.partial" "$lib"
-ln -sfn "libmujoco.so.$MUJOCO_VERSION" "$lib_dir/libmujoco.so"
-echo "setup: MuJoCo $MUJOCO_VERSION installed in third_party/mujoco/lib" >&2
+  mkdir -p "$lib_dir"
+  # Move into place last, so an interrupted run never leaves a half-written library behind.
+  mv "$tmp/out/libmujoco.so.$MUJOCO_VERSION" "$lib.partial"
+  mv "$lib.partial" "$lib"
+  ln -sfn "libmujoco.so.$MUJOCO_VERSION" "$lib_dir/libmujoco.so"
+  echo "setup: MuJoCo $MUJOCO_VERSION installed in third_party/mujoco/lib" >&2
+fi
+
+if [ ! -f "$clips_dir/.complete" ]; then
+  echo "setup: fetching the clip pack (wheel 'pybullet==3.2.7', sdist 'bvhtoolbox==0.1.3')" >&2
+  # Only data files are taken from the pybullet wheel, so the CPython 3.11 manylinux wheel serves
+  # on any machine; the sdist of bvhtoolbox is pure source.
+  "$py" -m pip download --quiet --no-deps --only-binary=:all: --python-version 3.11 \
+    --platform manylinux2014_x86_64 --dest "$tmp/pybullet" "pybullet==3.2.7"
+  "$py" -m pip download --quiet --no-deps --no-binary=:all: --dest "$tmp/bvhtoolbox" "bvhtoolbox==0.1.3"
+  "$py" - "$tmp" "$tmp/clips" <<'PY'
+import glob, hashlib, pathlib, sys, tarfile, zipfile
+tmp, out = pathlib.Path(sys.argv[1]), pathlib.Path(sys.argv[2])
+motions = "pybullet_data/data/motions/"
+# destination in the pack: (archive member, SHA-256)
+wanted = {
+    "deepmimic/walk_forward.txt": (motions + "walker/0walk_forward.txt", "a8790c45361077ff07d99c3f00a1fa73b78ff3ec77d083188f13eac75dcc0a58"),
+    "deepmimic/turn_left0.txt": (motions + "walker/turn_left0.txt", "5120bb55a4eb3ecfa75bcffcd472ad0b5be01647536f707896b9a9af655d6fce"),
+    "deepmimic/turn_left1.txt": (motions + "walker/turn_left1.txt", "e78540dcccfad969ff1304182de293714c1db163096ee37a02dbf34930e0c3d0"),
+    "deepmimic/turn_right0.txt": (motions + "walker/turn_right0.txt", "c1fa371a7d7d625970ad7fec0bb2d7ba59205acb74f8fac15f46799ae3a80ce3"),
+    "deepmimic/turn_right1.txt": (motions + "walker/turn_right1.txt", "3a655a1e9334cef592b5b7bef4fd7a52e46fcacc8c7c807cfa1bee8249e6350d"),
+    "deepmimic/humanoid3d_walk.txt": (motions + "humanoid3d_walk.txt", "32d082c3599bc40aac50b1afa196ff1e2cf3842bb40f0541ab088845f6328a41"),
+    "deepmimic/humanoid3d_run.txt": (motions + "humanoid3d_run.txt", "2cbe488023b243e5769299158ce7c78875ec4b701a2ffe6c0beeaf83d16ca87b"),
+}
+sit = ("bvh/sit_down_stand_up.bvh", "bvhtoolbox-0.1.3/tests/example_files/test_mocapbank.bvh",
+       "c12f37b39d931ee0bc8b081984255587eb8983e1d1a61fa0681ca6d5ea58e348")
+
+def put(dest, data, digest, source):
+    got = hashlib.sha256(data).hexdigest()
+    if got != digest:
+        sys.exit(f"setup: {source} has SHA-256 {got}, expected {digest}")
+    path = out / dest
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(data)
+
+wheel = glob.glob(str(tmp / "pybullet" / "pybullet-3.2.7-*.whl"))[0]
+with zipfile.ZipFile(wheel) as z:
+    for dest, (member, digest) in wanted.items():
+        put(dest, z.read(member), digest, f"{wheel}:{member}")
+sdist = glob.glob(str(tmp / "bvhtoolbox" / "bvhtoolbox-0.1.3.tar.gz"))[0]
+with tarfile.open(sdist) as t:
+    member = t.extractfile(sit[1])
+    if member is None:
+        sys.exit(f"setup: {sdist} has no {sit[1]}")
+    put(sit[0], member.read(), sit[2], f"{sdist}:{sit[1]}")
+PY
+  # Move into place last, so an interrupted run never leaves a half-filled pack behind.
+  rm -rf "$clips_dir"
+  mkdir -p "$root/third_party"
+  mv "$tmp/clips" "$clips_dir"
+  touch "$clips_dir/.complete"
+  echo "setup: clip pack installed in third_party/clips" >&2
+fi
