@@ -1,6 +1,7 @@
 //! Command-line interface: argument parsing and one function per command.
 
 mod bench;
+mod clip;
 mod run;
 mod scene;
 
@@ -30,6 +31,9 @@ pub enum Command {
     /// Measure throughput.
     #[command(subcommand)]
     Bench(bench::BenchCommand),
+    /// Reference clips: import, retarget, check.
+    #[command(subcommand)]
+    Clip(clip::ClipCommand),
 }
 
 /// Dispatches one parsed command line.
@@ -38,6 +42,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Run(args) => run::run(args),
         Command::Scene(cmd) => scene::run(cmd),
         Command::Bench(cmd) => bench::run(cmd),
+        Command::Clip(cmd) => clip::run(cmd),
     }
 }
 

@@ -1,0 +1,128 @@
+//! Errors of the clip crate: each names the file and, where there is one, the line (and the
+//! name or frame) that is wrong, e.g. `maps/cmu.ron:12:15: source joint `lfemurx` is not in
+//! 16_15_walk.bvh (joints: pelvis, lfemur, …)`.
+
+use repertoire_scenes::Location;
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+/// `file:line:col` when the location is known, else `file`.
+pub(crate) struct At<'a>(pub &'a Path, pub &'a Option<Location>);
+
+impl fmt::Display for At<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.1 {
+            Some(l) => write!(f, "{}:{l}", self.0.display()),
+            None => write!(f, "{}", self.0.display()),
+        }
+    }
+}
+
+/// Everything that can go wrong between a clip file and a retargeted, validated clip.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ClipError {
+    /// A file could not be read or written.
+    #[error("{}: {action}: {source}", file.display())]
+    Io {
+        /// The file.
+        file: PathBuf,
+        /// What was being done (`cannot read`, `cannot write`, ...).
+        action: &'static str,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// A motion-capture file could not be parsed (the message names file, line and column).
+    #[error(transparent)]
+    Mocap(#[from] repertoire_mocap::Error),
+    /// The target body could not be loaded or compiled.
+    #[error(transparent)]
+    Scene(#[from] repertoire_scenes::SceneError),
+    /// A RON file (retarget map, keyframes, clip metadata) is malformed.
+    #[error("{}: {message}", At(file, &Some(*loc)))]
+    Ron {
+        /// The file.
+        file: PathBuf,
+        /// Where the parser stopped.
+        loc: Location,
+        /// What is wrong.
+        message: String,
+    },
+    /// A retarget map that does not fit the source skeleton or the target body.
+    #[error("{}: {message}", At(file, loc))]
+    Map {
+        /// The map file.
+        file: PathBuf,
+        /// Where the offending name is, when it can be found.
+        loc: Option<Location>,
+        /// What is wrong (names the joint or body point).
+        message: String,
+    },
+    /// A keyframe clip that parses but names unknown joints or has bad times.
+    #[error("{}: {message}", At(file, loc))]
+    Keyframes {
+        /// The keyframe file.
+        file: PathBuf,
+        /// Where the offending value is.
+        loc: Option<Location>,
+        /// What is wrong.
+        message: String,
+    },
+    /// A clip that cannot be used: a NaN or infinite frame, fewer than 2 frames, a qpos width
+    /// that differs from the body's, a malformed .npy file.
+    #[error("{origin}: {message}")]
+    Unusable {
+        /// The clip's file or source.
+        origin: String,
+        /// Why it cannot be used (names the frame where one is at fault).
+        message: String,
+    },
+    /// A request the inputs cannot satisfy (no map fits a skeleton, mirroring a body without
+    /// left/right pairs, an unknown file type, ...).
+    #[error("{0}")]
+    Usage(String),
+}
+
+impl ClipError {
+    /// Wraps a RON parse error of `file`.
+    pub(crate) fn from_ron(file: &Path, err: ron::error::SpannedError) -> Self {
+        let loc = Location { line: err.span.start.line, col: err.span.start.col };
+        let message = match &err.code {
+            ron::Error::NoSuchStructField { expected, found, outer } => format!(
+                "unknown field `{found}`{}; expected one of: {}",
+                outer.as_ref().map(|o| format!(" in `{o}`")).unwrap_or_default(),
+                expected.join(", ")
+            ),
+            other => other.to_string(),
+        };
+        ClipError::Ron { file: file.to_path_buf(), loc, message }
+    }
+
+    /// An unusable-clip error.
+    pub(crate) fn unusable(origin: impl fmt::Display, message: impl Into<String>) -> Self {
+        ClipError::Unusable { origin: origin.to_string(), message: message.into() }
+    }
+
+    pub(crate) fn io(file: &Path, action: &'static str, source: std::io::Error) -> Self {
+        ClipError::Io { file: file.to_path_buf(), action, source }
+    }
+}
+
+/// Result alias for this crate.
+pub type Result<T, E = ClipError> = std::result::Result<T, E>;
+
+/// Reads a text file, naming it in the error.
+pub(crate) fn read_text(path: &Path) -> Result<String> {
+    std::fs::read_to_string(path).map_err(|e| ClipError::io(path, "cannot read", e))
+}
+
+/// Writes `bytes` to `path` atomically: a temporary file beside it, then a rename.
+pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "clip".into());
+    let tmp = path.with_file_name(format!(".{name}.{}.partial", std::process::id()));
+    std::fs::write(&tmp, bytes).map_err(|e| ClipError::io(&tmp, "cannot write", e))?;
+    std::fs::rename(&tmp, path).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        ClipError::io(path, "cannot write", e)
+    })
+}

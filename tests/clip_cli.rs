@@ -1,0 +1,82 @@
+//! `repertoire clip check` on a real clip (table and output file) and on unusable ones.
+
+mod common;
+
+use common::{temp_dir, write};
+use std::path::Path;
+use std::process::Command;
+
+const MOCAP: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/mocap");
+
+fn repertoire(dir: &Path, args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_repertoire")).current_dir(dir).args(args).output().expect("runs")
+}
+
+#[test]
+fn clip_check_prints_the_table_and_writes_the_clip() {
+    let dir = temp_dir("clip-check");
+    let file = format!("{MOCAP}/cmu-subject16-30fps/16_19_walk_90deg_right_turn.bvh");
+    let out = repertoire(&dir, &["clip", "check", &file, "--body", "humanoid", "--fps", "60"]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
+    for needle in
+        ["map       cmu-subject16-bvh", "left_knee", "right_hand", "foot penetration", "foot skate", "root drift"]
+    {
+        assert!(stdout.contains(needle), "missing `{needle}`:\n{stdout}");
+    }
+    let heading = stdout.lines().find(|l| l.starts_with("heading change")).expect("heading line");
+    let deg: f64 = heading.split_whitespace().nth(2).unwrap().trim_end_matches('°').parse().unwrap();
+    assert!(deg < -60.0, "a right turn: {heading}");
+    let all = stdout.lines().find(|l| l.trim_start().starts_with("all")).expect("overall error line");
+    let mean: f64 = all.split_whitespace().nth(1).unwrap().parse().unwrap();
+    assert!(mean < 4.0, "{all}");
+    let written = dir.join("16_19_walk_90deg_right_turn.clip.ron");
+    let clip = repertoire_clip::Clip::load(&written).expect("the written clip loads");
+    assert_eq!(clip.fps, 60.0);
+    assert_eq!(clip.nq, 32);
+    assert!(stdout.contains(&clip.content_hash()), "prints the clip's hash");
+
+    let npy = dir.join("turn.npy");
+    let out = repertoire(&dir, &["clip", "check", &file, "--out", npy.to_str().unwrap()]);
+    assert!(out.status.success());
+    assert!(npy.exists() && dir.join("turn.meta.ron").exists());
+}
+
+#[test]
+fn clip_check_refuses_unusable_clips_with_a_reason() {
+    let dir = temp_dir("clip-check-bad");
+    let walk = std::fs::read_to_string(format!("{MOCAP}/cmu-subject16-30fps/16_15_walk.bvh")).unwrap();
+    let motion = walk.find("MOTION").unwrap();
+    let header = &walk[..motion];
+    let frames: Vec<&str> = walk[motion..].lines().skip(3).collect();
+
+    // One frame only.
+    let short = write(&dir, "short.bvh", &format!("{header}MOTION\nFrames: 1\nFrame Time: 0.0333333\n{}\n", frames[0]));
+    let out = repertoire(&dir, &["clip", "check", short.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(stderr.contains("short.bvh") && stderr.contains("too short"), "{stderr}");
+
+    // A NaN value in frame 1.
+    let mut bad = frames[..3].to_vec();
+    let nan_line = bad[1].replacen(bad[1].split_whitespace().next().unwrap(), "nan", 1);
+    bad[1] = &nan_line;
+    let nan =
+        write(&dir, "nan.bvh", &format!("{header}MOTION\nFrames: 3\nFrame Time: 0.0333333\n{}\n", bad.join("\n")));
+    let out = repertoire(&dir, &["clip", "check", nan.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(stderr.contains("nan.bvh") && stderr.contains("frame 1"), "{stderr}");
+
+    // A map naming a joint the file lacks.
+    let map = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/skills/clip/maps/cmu-subject16.bvh.ron"))
+        .unwrap()
+        .replace("\"lfoot\"", "\"lankle\"");
+    let map = write(&dir, "my.map.ron", &map);
+    let file = format!("{MOCAP}/cmu-subject16-30fps/16_15_walk.bvh");
+    let out = repertoire(&dir, &["clip", "check", &file, "--map", map.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(stderr.contains("my.map.ron:") && stderr.contains("`lankle`"), "{stderr}");
+    assert!(!dir.join("16_15_walk.clip.ron").exists(), "nothing written for an unusable clip");
+}
