@@ -41,8 +41,8 @@ pub enum BenchCommand {
         /// Timed PPO iterations (after one warm-up iteration).
         #[arg(long, default_value_t = 5)]
         iters: usize,
-        /// Hidden widths of the policy and value MLPs.
-        #[arg(long, value_delimiter = ',', default_value = "256,256")]
+        /// Hidden widths of the policy and value MLPs (default: the sitting paper's 2×64 skill MLP).
+        #[arg(long, value_delimiter = ',', default_value = "64,64")]
         hidden: Vec<usize>,
         /// Epochs over each rollout.
         #[arg(long, default_value_t = 5)]
