@@ -371,6 +371,39 @@ impl World {
         self.owns_model = true;
     }
 
+    /// Moves prop `p` to `(x, y)` on its current base height, facing `yaw` (radians), for the
+    /// rest of the episode (a skill that needs the chair where its clip sits).
+    pub fn move_prop(&mut self, p: usize, x: f64, y: f64, yaw: f64) -> Result<()> {
+        let Some(idx) = self.shared.props.get(p) else {
+            return Err(SceneError::Usage(format!(
+                "move_prop: no prop {p}; the scene has {}",
+                self.shared.props.len()
+            )));
+        };
+        if ![x, y, yaw].iter().all(|v| v.is_finite()) {
+            return Err(SceneError::Usage("move_prop: the pose holds a NaN or infinite value".into()));
+        }
+        let placement = &mut self.placements[p];
+        placement.pos[0] = x;
+        placement.pos[1] = y;
+        placement.yaw = yaw;
+        let (pos, q) = (placement.pos, yaw_quat(yaw.to_degrees()));
+        match idx.mount {
+            PropMount::Fixed { mocap } => {
+                self.data.mocap_pos_mut()[mocap] = pos;
+                self.data.mocap_quat_mut()[mocap] = q;
+            }
+            PropMount::Free { qpos, dof } => {
+                let qp = self.data.qpos_mut();
+                qp[qpos..qpos + 3].copy_from_slice(&pos);
+                qp[qpos + 3..qpos + 7].copy_from_slice(&q);
+                self.data.qvel_mut()[dof..dof + 6].fill(0.0);
+            }
+        }
+        self.data.forward();
+        Ok(())
+    }
+
     /// Stands the character in the default pose at `(x, y)` on the floor, facing `yaw`
     /// (radians, counter-clockwise from +x), at rest.
     pub fn place_standing(&mut self, x: f64, y: f64, yaw: f64) {
@@ -396,13 +429,33 @@ impl World {
     /// Sets the character's pose: root position, root orientation (w x y z) and the actuated
     /// joint angles in map order; velocities are zeroed and PD targets set to the pose.
     pub fn set_pose(&mut self, root_pos: [f64; 3], root_quat: [f64; 4], joints: &[f64]) -> Result<()> {
+        self.set_motion(root_pos, root_quat, joints, [0.0; 6], None)
+    }
+
+    /// Sets the character's pose and velocities, as reference-state initialisation needs:
+    /// `root_vel` is the free joint's qvel (linear velocity in the world frame, angular velocity
+    /// in the root's frame, MuJoCo's convention), `joint_vel` the actuated joints' velocities in
+    /// map order (`None`: at rest). PD targets are set to the pose; the props are untouched.
+    pub fn set_motion(
+        &mut self,
+        root_pos: [f64; 3],
+        root_quat: [f64; 4],
+        joints: &[f64],
+        root_vel: [f64; 6],
+        joint_vel: Option<&[f64]>,
+    ) -> Result<()> {
         let idx = &self.shared.index;
-        if joints.len() != idx.dof() {
+        let dof = idx.dof();
+        if joints.len() != dof || joint_vel.is_some_and(|v| v.len() != dof) {
             return Err(SceneError::Usage(format!(
-                "set_pose: {} joint angles given, the body has {}",
+                "set_motion: {} joint angles and {} velocities given, the body has {dof} actuated joints",
                 joints.len(),
-                idx.dof()
+                joint_vel.map_or(dof, <[f64]>::len)
             )));
+        }
+        let all = root_pos.iter().chain(&root_quat).chain(joints).chain(&root_vel).chain(joint_vel.unwrap_or(&[]));
+        if all.clone().any(|v| !v.is_finite()) {
+            return Err(SceneError::Usage("set_motion: the state holds a NaN or infinite value".into()));
         }
         let r = idx.root_qpos;
         let qp = self.data.qpos_mut();
@@ -411,9 +464,10 @@ impl World {
         for (j, &a) in idx.joints.iter().zip(joints) {
             qp[j.qpos] = a;
         }
-        self.data.qvel_mut()[idx.root_dof..idx.root_dof + 6].fill(0.0);
-        for j in &idx.joints {
-            self.data.qvel_mut()[j.dof] = 0.0;
+        let qv = self.data.qvel_mut();
+        qv[idx.root_dof..idx.root_dof + 6].copy_from_slice(&root_vel);
+        for (k, j) in idx.joints.iter().enumerate() {
+            qv[j.dof] = joint_vel.map_or(0.0, |v| v[k]);
         }
         self.hold_pose();
         self.data.forward();

@@ -4,6 +4,7 @@ mod bench;
 mod clip;
 mod run;
 mod scene;
+mod skill;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
@@ -34,6 +35,9 @@ pub enum Command {
     /// Reference clips: import, retarget, check.
     #[command(subcommand)]
     Clip(clip::ClipCommand),
+    /// Train, fine-tune and evaluate skills.
+    #[command(subcommand)]
+    Skill(skill::SkillCommand),
 }
 
 /// Dispatches one parsed command line.
@@ -43,6 +47,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Scene(cmd) => scene::run(cmd),
         Command::Bench(cmd) => bench::run(cmd),
         Command::Clip(cmd) => clip::run(cmd),
+        Command::Skill(cmd) => skill::run(cmd),
     }
 }
 

@@ -12,6 +12,8 @@ pub struct TaskStep {
     pub reward: f32,
     /// The episode ended in a terminal state (a fall, a dropped box...).
     pub terminated: bool,
+    /// The task's own time limit ended the episode (e.g. its reference clip ran out).
+    pub truncated: bool,
     /// Values of the task's [`Task::term_names`], in order.
     pub terms: [f32; MAX_TERMS],
 }
@@ -39,7 +41,9 @@ pub trait Task: Send {
 }
 
 /// The character of a scene as an environment: normalised actions in `[-1, 1]` become PD
-/// targets spread over each actuator's control range, observations follow an
+/// targets over each actuator's control range, piecewise linearly with 0 at the standing pose
+/// (−1 and 1 at the range's ends), so an untrained policy starts near a stable pose instead of
+/// at the ranges' midpoints (a knee bent 80°); observations follow an
 /// [`ObservationLayout`] plus the task's extra values, episodes are cut after `max_steps`
 /// control steps.
 pub struct HumanoidEnv<T: Task> {
@@ -48,9 +52,10 @@ pub struct HumanoidEnv<T: Task> {
     task: T,
     max_steps: u32,
     steps: u32,
-    /// Centre and half-width of each actuator's control range, map order.
+    /// Per actuated joint (map order): the standing angle and the spans above and below it.
     ctrl_mid: Vec<f64>,
-    ctrl_half: Vec<f64>,
+    ctrl_up: Vec<f64>,
+    ctrl_down: Vec<f64>,
     targets: Vec<f64>,
     lo: Vec<f32>,
     hi: Vec<f32>,
@@ -67,8 +72,10 @@ impl<T: Task> HumanoidEnv<T> {
     /// Like [`HumanoidEnv::new`] with a layout shared by many environments.
     pub fn with_layout(model: &Arc<WorldModel>, layout: Arc<ObservationLayout>, task: T, max_steps: u32) -> Self {
         let joints = &model.index.joints;
-        let ctrl_mid = joints.iter().map(|j| 0.5 * (j.ctrl_range[0] + j.ctrl_range[1])).collect();
-        let ctrl_half = joints.iter().map(|j| 0.5 * (j.ctrl_range[1] - j.ctrl_range[0])).collect();
+        let q0 = model.mj_model().qpos0();
+        let ctrl_mid: Vec<f64> = joints.iter().map(|j| q0[j.qpos].clamp(j.ctrl_range[0], j.ctrl_range[1])).collect();
+        let ctrl_up = joints.iter().zip(&ctrl_mid).map(|(j, m)| j.ctrl_range[1] - m).collect();
+        let ctrl_down = joints.iter().zip(&ctrl_mid).map(|(j, m)| m - j.ctrl_range[0]).collect();
         let n = joints.len();
         HumanoidEnv {
             world: model.new_world(),
@@ -77,7 +84,8 @@ impl<T: Task> HumanoidEnv<T> {
             max_steps,
             steps: 0,
             ctrl_mid,
-            ctrl_half,
+            ctrl_up,
+            ctrl_down,
             targets: vec![0.0; n],
             lo: vec![-1.0; n],
             hi: vec![1.0; n],
@@ -99,9 +107,32 @@ impl<T: Task> HumanoidEnv<T> {
         &self.layout
     }
 
+    /// The world, mutably (evaluation tools that reposition props or the character).
+    pub fn world_mut(&mut self) -> &mut World {
+        &mut self.world
+    }
+
+    /// The task, mutably.
+    pub fn task_mut(&mut self) -> &mut T {
+        &mut self.task
+    }
+
     /// Control steps taken in the current episode.
     pub fn steps(&self) -> u32 {
         self.steps
+    }
+
+    /// The PD target of normalised action value `a` for actuated joint `j`.
+    pub fn target(&self, j: usize, a: f32) -> f64 {
+        let a = f64::from(a);
+        self.ctrl_mid[j] + if a >= 0.0 { a * self.ctrl_up[j] } else { a * self.ctrl_down[j] }
+    }
+
+    /// The normalised action whose PD target is `angle` for actuated joint `j` (clamped).
+    pub fn action_for(&self, j: usize, angle: f64) -> f32 {
+        let d = angle - self.ctrl_mid[j];
+        let a = if d >= 0.0 { d / self.ctrl_up[j].max(1e-9) } else { d / self.ctrl_down[j].max(1e-9) };
+        a.clamp(-1.0, 1.0) as f32
     }
 
     fn observe(&self, obs: &mut [f32]) {
@@ -135,9 +166,11 @@ impl<T: Task> Env for HumanoidEnv<T> {
     }
 
     fn step(&mut self, action: &[f32], obs: &mut [f32]) -> StepOutcome {
-        for (j, (t, &a)) in self.targets.iter_mut().zip(action).enumerate() {
-            *t = self.ctrl_mid[j] + self.ctrl_half[j] * f64::from(a);
+        let mut targets = std::mem::take(&mut self.targets);
+        for (j, (t, &a)) in targets.iter_mut().zip(action).enumerate() {
+            *t = self.target(j, a);
         }
+        self.targets = targets;
         // The wrapper clips actions to [-1, 1] and the policy's outputs are finite, so the
         // targets are always valid; a NaN from a diverged policy ends the episode instead.
         let stepped = self.world.step(&self.targets).is_ok();
@@ -151,7 +184,7 @@ impl<T: Task> Env for HumanoidEnv<T> {
         StepOutcome {
             reward: if diverged { 0.0 } else { out.reward },
             terminated: out.terminated || diverged,
-            truncated: self.steps >= self.max_steps,
+            truncated: out.truncated || self.steps >= self.max_steps,
             terms: out.terms,
         }
     }

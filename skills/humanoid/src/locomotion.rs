@@ -82,6 +82,6 @@ impl Task for Locomotion {
         terms[0] = if fallen { 0.0 } else { self.healthy };
         terms[1] = self.forward_weight * forward;
         terms[2] = -self.ctrl_weight * ctrl;
-        TaskStep { reward: terms[0] + terms[1] + terms[2], terminated: fallen, terms }
+        TaskStep { reward: terms[0] + terms[1] + terms[2], terminated: fallen, truncated: false, terms }
     }
 }

@@ -19,20 +19,6 @@ fn env(model: &Arc<WorldModel>) -> HumanoidEnv<Locomotion> {
     HumanoidEnv::new(model, &Feature::proprioception(), Locomotion::default(), 200).expect("layout")
 }
 
-/// Normalised actions that hold the standing pose: the inverse of the env's target mapping.
-fn standing_action(model: &WorldModel) -> Vec<f32> {
-    let q0 = model.mj_model().qpos0();
-    model
-        .index
-        .joints
-        .iter()
-        .map(|j| {
-            let (lo, hi) = (j.ctrl_range[0], j.ctrl_range[1]);
-            ((2.0 * q0[j.qpos] - lo - hi) / (hi - lo)) as f32
-        })
-        .collect()
-}
-
 #[test]
 fn standing_is_healthy_and_falling_terminates() {
     let model = model();
@@ -43,11 +29,20 @@ fn standing_is_healthy_and_falling_terminates() {
     assert_eq!(obs.len(), 58, "25 angles + 25 velocities + height + 3 velocity + pitch/roll + 2 feet");
     assert!(obs.iter().all(|v| v.is_finite()));
 
-    // Holding the standing pose for 10 control steps (1/6 s) keeps the character up.
-    let hold = standing_action(&model);
-    for _ in 0..10 {
+    // Action 0 is the standing pose; `action_for` inverts the mapping.
+    let q0 = model.mj_model().qpos0();
+    let hold: Vec<f32> = model.index.joints.iter().enumerate().map(|(k, j)| e.action_for(k, q0[j.qpos])).collect();
+    assert!(hold.iter().all(|a| a.abs() < 1e-6), "the standing pose is action 0: {hold:?}");
+    for k in 0..e.act_dim() {
+        // A joint standing at a range end (the elbows) has no span on that side.
+        for a in [-1.0f32, -0.3, 0.4, 1.0].into_iter().filter(|&a| e.target(k, a) != e.target(k, 0.0)) {
+            let back = e.action_for(k, e.target(k, a));
+            assert!((back - a).abs() < 1e-5, "joint {k}: action {a} → target → action {back}");
+        }
+    }
+    for _ in 0..120 {
         let out = e.step(&hold, &mut obs);
-        assert!(!out.terminated, "holding the standing pose must not fall within 1/6 s");
+        assert!(!out.terminated, "holding the standing pose must not fall within 2 s");
         assert_eq!(out.terms[0], 5.0, "healthy reward while up");
     }
     let height = obs[50];

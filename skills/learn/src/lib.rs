@@ -1,4 +1,5 @@
 //! The learning core: environments, policies on dfdx, PPO, checkpoints.
+pub mod acting;
 pub mod bench;
 pub mod checkpoint;
 pub mod env;

@@ -183,6 +183,41 @@ pub struct MlpInference {
 }
 
 impl MlpInference {
+    /// Builds from `(in, out, W [in × out] row-major, b [out])` per layer, input first; `Err`
+    /// says which layer does not fit.
+    pub fn from_layers(layers: Vec<(usize, usize, Vec<f32>, Vec<f32>)>) -> Result<Self, String> {
+        if layers.is_empty() {
+            return Err("an MLP needs at least one layer".into());
+        }
+        for (i, (inputs, outputs, w, b)) in layers.iter().enumerate() {
+            if w.len() != inputs * outputs || b.len() != *outputs {
+                return Err(format!(
+                    "layer {i}: {inputs}×{outputs} needs {} weights and {outputs} biases, found {} and {}",
+                    inputs * outputs,
+                    w.len(),
+                    b.len()
+                ));
+            }
+            if i > 0 && layers[i - 1].1 != *inputs {
+                return Err(format!("layer {i} takes {inputs} inputs but layer {} gives {}", i - 1, layers[i - 1].1));
+            }
+            if w.iter().chain(b).any(|v| !v.is_finite()) {
+                return Err(format!("layer {i} holds a NaN or infinite weight"));
+            }
+        }
+        Ok(MlpInference { layers, scratch: [Vec::new(), Vec::new()] })
+    }
+
+    /// The layers as `(in, out, W, b)`, input first.
+    pub fn layers(&self) -> &[(usize, usize, Vec<f32>, Vec<f32>)] {
+        &self.layers
+    }
+
+    /// Input width.
+    pub fn inputs(&self) -> usize {
+        self.layers.first().map_or(0, |l| l.0)
+    }
+
     /// Output width.
     pub fn outputs(&self) -> usize {
         self.layers.last().map_or(0, |l| l.1)

@@ -21,6 +21,7 @@ pub const HALF_LN_2PI: f32 = 0.918_938_5;
 
 /// Sizes and options of the policy and value networks (RON-serialisable).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
 pub struct PolicyConfig {
     /// Hidden widths of the policy MLP (tanh between layers), e.g. `[64, 64]`.
     pub policy_hidden: Vec<usize>,
@@ -163,6 +164,11 @@ impl GaussianInference {
             }
             *lp = sum;
         }
+    }
+
+    /// The mean network.
+    pub fn mean_net(&self) -> &MlpInference {
+        &self.mean
     }
 
     /// The mean action (deterministic evaluation) for a batch.

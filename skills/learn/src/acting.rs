@@ -1,0 +1,191 @@
+//! [`ActingPolicy`]: what a trained skill needs to act, and nothing else: the Gaussian policy's
+//! mean network and log-std, and the observation normaliser frozen at the end of training. One
+//! safetensors file, written atomically; loading refuses truncated, corrupt or ill-shaped files.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use dfdx::prelude::HasShape;
+use safetensors::{Dtype, SafeTensors, tensor::TensorView};
+
+use crate::checkpoint::CheckpointError;
+use crate::env::Env;
+use crate::nn::MlpInference;
+use crate::normalize::RunningMeanStd;
+use crate::ppo::{OBS_CLIP, Ppo};
+
+/// A trained Gaussian policy with its frozen observation normaliser.
+#[derive(Clone, Debug)]
+pub struct ActingPolicy {
+    /// Observation → action mean.
+    pub mean: MlpInference,
+    /// Log standard deviation per action dimension.
+    pub log_std: Vec<f32>,
+    /// Observation statistics (identity when training did not normalise).
+    pub obs_rms: RunningMeanStd,
+    /// Whether observations are normalised before the network.
+    pub normalize_obs: bool,
+    scratch: Vec<f32>,
+}
+
+fn corrupt(path: &Path, reason: impl Into<String>) -> CheckpointError {
+    CheckpointError::Corrupt { path: path.to_path_buf(), reason: reason.into() }
+}
+
+fn f32s(path: &Path, st: &SafeTensors<'_>, name: &str) -> Result<(Vec<usize>, Vec<f32>), CheckpointError> {
+    let t = st.tensor(name).map_err(|_| corrupt(path, format!("no tensor `{name}`")))?;
+    if t.dtype() != Dtype::F32 {
+        return Err(corrupt(path, format!("tensor `{name}` is {:?}, expected F32", t.dtype())));
+    }
+    let v = t.data().chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+    Ok((t.shape().to_vec(), v))
+}
+
+fn f64s(path: &Path, st: &SafeTensors<'_>, name: &str) -> Result<Vec<f64>, CheckpointError> {
+    let t = st.tensor(name).map_err(|_| corrupt(path, format!("no tensor `{name}`")))?;
+    if t.dtype() != Dtype::F64 {
+        return Err(corrupt(path, format!("tensor `{name}` is {:?}, expected F64", t.dtype())));
+    }
+    Ok(t.data().chunks_exact(8).map(|b| f64::from_le_bytes(b.try_into().expect("8 bytes"))).collect())
+}
+
+impl ActingPolicy {
+    /// The current policy and normaliser of a PPO learner.
+    pub fn from_ppo<E: Env>(ppo: &Ppo<E>) -> Self {
+        let g = ppo.policy_inference();
+        ActingPolicy {
+            mean: g.mean_net().clone(),
+            log_std: g.log_std.clone(),
+            obs_rms: ppo.obs_rms.clone(),
+            normalize_obs: ppo.cfg.normalize_obs,
+            scratch: Vec::new(),
+        }
+    }
+
+    /// Starts `ppo` from this policy (fine-tuning): the mean network, log-std and observation
+    /// statistics are copied in (the value network keeps its initialisation). `Err` names the
+    /// first shape that differs.
+    pub fn load_into<E: Env>(&self, ppo: &mut Ppo<E>) -> Result<(), String> {
+        let policy = &mut ppo.agent.policy;
+        if policy.mean.layers.len() != self.mean.layers().len() {
+            return Err(format!(
+                "the policy has {} layers, the configuration {}",
+                self.mean.layers().len(),
+                policy.mean.layers.len()
+            ));
+        }
+        for (i, (layer, (inputs, outputs, w, b))) in policy.mean.layers.iter_mut().zip(self.mean.layers()).enumerate() {
+            if (layer.inputs(), layer.outputs()) != (*inputs, *outputs) {
+                return Err(format!(
+                    "layer {i} is {inputs}×{outputs} in the policy, {}×{} in the configuration",
+                    layer.inputs(),
+                    layer.outputs()
+                ));
+            }
+            layer.weight.copy_from(w);
+            layer.bias.copy_from(b);
+        }
+        if policy.log_std.shape().0 != self.log_std.len() || ppo.obs_rms.dim() != self.obs_rms.dim() {
+            return Err("the action or observation width differs".into());
+        }
+        policy.log_std.copy_from(&self.log_std);
+        ppo.obs_rms = self.obs_rms.clone();
+        if ppo.cfg.normalize_obs {
+            ppo.obs_rms.normalize(&ppo.envs.obs, &mut ppo.next_obs, OBS_CLIP);
+        }
+        Ok(())
+    }
+
+    /// Observation width.
+    pub fn obs_dim(&self) -> usize {
+        self.mean.inputs()
+    }
+
+    /// Action width.
+    pub fn act_dim(&self) -> usize {
+        self.mean.outputs()
+    }
+
+    /// Mean actions `[B × act_dim]` for raw observations `[B × obs_dim]` (normalised here).
+    pub fn act(&mut self, obs: &[f32], actions: &mut [f32]) {
+        if self.normalize_obs {
+            self.scratch.resize(obs.len(), 0.0);
+            self.obs_rms.normalize(obs, &mut self.scratch, OBS_CLIP);
+            self.mean.forward(&self.scratch, actions);
+        } else {
+            self.mean.forward(obs, actions);
+        }
+    }
+
+    /// Writes the policy to `path` (safetensors) via a `.partial` file and a rename.
+    pub fn save(&self, path: &Path) -> Result<(), CheckpointError> {
+        let mut entries: Vec<(String, Dtype, Vec<usize>, Vec<u8>)> = Vec::new();
+        let bytes32 = |v: &[f32]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
+        let bytes64 = |v: &[f64]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
+        for (i, (inputs, outputs, w, b)) in self.mean.layers().iter().enumerate() {
+            entries.push((format!("mean.{i}.weight"), Dtype::F32, vec![*inputs, *outputs], bytes32(w)));
+            entries.push((format!("mean.{i}.bias"), Dtype::F32, vec![*outputs], bytes32(b)));
+        }
+        entries.push(("log_std".into(), Dtype::F32, vec![self.log_std.len()], bytes32(&self.log_std)));
+        let d = self.obs_rms.dim();
+        entries.push(("obs.mean".into(), Dtype::F64, vec![d], bytes64(&self.obs_rms.mean)));
+        entries.push(("obs.var".into(), Dtype::F64, vec![d], bytes64(&self.obs_rms.var)));
+        entries.push(("obs.count".into(), Dtype::F64, vec![1], bytes64(&[self.obs_rms.count])));
+        let flag = if self.normalize_obs { 1.0 } else { 0.0 };
+        entries.push(("obs.normalize".into(), Dtype::F64, vec![1], bytes64(&[flag])));
+        let views: Vec<(String, TensorView<'_>)> = entries
+            .iter()
+            .map(|(n, dt, shape, data)| (n.clone(), TensorView::new(*dt, shape.clone(), data).expect("sizes match")))
+            .collect();
+        let meta = HashMap::from([("format".to_string(), "repertoire-acting-policy-1".to_string())]);
+        let bytes =
+            safetensors::serialize(views, Some(meta)).map_err(|e| corrupt(path, format!("cannot serialise: {e}")))?;
+        let partial = PathBuf::from(format!("{}.partial", path.display()));
+        let io = |p: &Path| {
+            let p = p.to_path_buf();
+            move |source| CheckpointError::Io { path: p, source }
+        };
+        std::fs::write(&partial, &bytes).map_err(io(&partial))?;
+        std::fs::rename(&partial, path).map_err(io(path))
+    }
+
+    /// Reads a policy written by [`ActingPolicy::save`].
+    pub fn load(path: &Path) -> Result<Self, CheckpointError> {
+        let bytes = std::fs::read(path).map_err(|source| CheckpointError::Io { path: path.to_path_buf(), source })?;
+        let st = SafeTensors::deserialize(&bytes).map_err(|e| corrupt(path, e.to_string()))?;
+        let mut layers = Vec::new();
+        for i in 0.. {
+            if st.tensor(&format!("mean.{i}.weight")).is_err() {
+                break;
+            }
+            let (shape, w) = f32s(path, &st, &format!("mean.{i}.weight"))?;
+            let (_, b) = f32s(path, &st, &format!("mean.{i}.bias"))?;
+            if shape.len() != 2 {
+                return Err(corrupt(path, format!("mean.{i}.weight has shape {shape:?}, expected 2-D")));
+            }
+            layers.push((shape[0], shape[1], w, b));
+        }
+        let mean = MlpInference::from_layers(layers).map_err(|m| corrupt(path, m))?;
+        let (_, log_std) = f32s(path, &st, "log_std")?;
+        if log_std.len() != mean.outputs() || log_std.iter().any(|v| !v.is_finite()) {
+            return Err(corrupt(path, format!("log_std has {} values for {} actions", log_std.len(), mean.outputs())));
+        }
+        let obs_mean = f64s(path, &st, "obs.mean")?;
+        let obs_var = f64s(path, &st, "obs.var")?;
+        let count = f64s(path, &st, "obs.count")?;
+        let flag = f64s(path, &st, "obs.normalize")?;
+        if obs_mean.len() != mean.inputs() || obs_var.len() != mean.inputs() || count.len() != 1 || flag.len() != 1 {
+            return Err(corrupt(path, format!("observation statistics do not fit {} inputs", mean.inputs())));
+        }
+        if obs_mean.iter().chain(&obs_var).any(|v| !v.is_finite()) || obs_var.iter().any(|&v| v < 0.0) {
+            return Err(corrupt(path, "observation statistics hold a NaN, infinite or negative variance"));
+        }
+        Ok(ActingPolicy {
+            mean,
+            log_std,
+            obs_rms: RunningMeanStd { mean: obs_mean, var: obs_var, count: count[0] },
+            normalize_obs: flag[0] != 0.0,
+            scratch: Vec::new(),
+        })
+    }
+}

@@ -1,0 +1,208 @@
+//! `skill eval`: many seeded trials of a library skill with its mean action, from the clip's
+//! start and from its predecessors' end poses (the sitting paper's Table 2), with MoCapAct's
+//! normalised episode length and return; successful end states become the skill's end-pose pool.
+
+use std::sync::Arc;
+
+use rayon::prelude::*;
+use repertoire_humanoid::HumanoidEnv;
+use repertoire_learn::env::{Env, EnvRng};
+use serde::{Deserialize, Serialize};
+
+use rand::SeedableRng;
+
+use crate::error::Result;
+use crate::imitation::{ImitationTask, TaskSettings};
+use crate::library::LibrarySkill;
+use crate::pool::{Pool, PoolState};
+use crate::skill::SkillSetup;
+use crate::spec::{Goal, Init};
+
+/// Where evaluation episodes start.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum StartFrom {
+    /// The clip's first frame.
+    ClipStart,
+    /// A random end pose of a predecessor skill (needs their pools).
+    Predecessors,
+}
+
+/// What an evaluation measured.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EvalReport {
+    /// The skill.
+    pub skill: String,
+    /// Where trials started.
+    pub start: StartFrom,
+    /// Trials run.
+    pub trials: usize,
+    /// Trials that reached the end of the clip (or the time limit) without falling and, for
+    /// sit, with the pelvis on the seat.
+    pub successes: usize,
+    /// Trials that ended in a fall.
+    pub falls: usize,
+    /// `successes / trials`.
+    pub success_rate: f64,
+    /// Mean of episode length / the longest possible length (MoCapAct).
+    pub normalized_length: f64,
+    /// Mean of return / (the largest reward per step × the longest possible length).
+    pub normalized_return: f64,
+    /// Mean undiscounted return.
+    pub mean_return: f64,
+}
+
+/// Runs `trials` episodes of `skill` in `setup`'s environment, `batch` at a time in parallel,
+/// starting as `start` says. Returns the report and the successful end states.
+pub fn evaluate(
+    setup: &SkillSetup,
+    skill: &mut LibrarySkill,
+    start: StartFrom,
+    trials: usize,
+    batch: usize,
+    seed: u64,
+) -> Result<(EvalReport, Vec<PoolState>)> {
+    skill.check_fits(&setup.model)?;
+    let mut settings: TaskSettings = (*setup.settings).clone();
+    settings.init = match start {
+        StartFrom::ClipStart => Init::Start,
+        StartFrom::Predecessors => match &setup.spec.spec.init {
+            Init::Pools { from, .. } if settings.pools.iter().any(|p| !p.states.is_empty()) => {
+                Init::Pools { from: from.clone(), fraction: 1.0 }
+            }
+            Init::Pools { from, .. } => {
+                return Err(crate::SkillError::Invalid(format!(
+                    "the end-pose pools of {} hold no states (their skills never succeeded in `skill eval`)",
+                    from.join(", ")
+                )));
+            }
+            _ => {
+                return Err(crate::SkillError::Invalid(format!(
+                    "skill `{}` has no predecessor pools: its spec's init is not Pools",
+                    setup.spec.spec.name
+                )));
+            }
+        },
+    };
+    let settings = Arc::new(settings);
+    let batch = batch.clamp(1, trials.max(1));
+    let mut envs: Vec<HumanoidEnv<ImitationTask>> = (0..batch)
+        .map(|_| {
+            HumanoidEnv::with_layout(
+                &setup.model,
+                Arc::clone(&setup.layout),
+                ImitationTask::new(Arc::clone(&settings)),
+                setup.max_steps,
+            )
+        })
+        .collect();
+    let (od, ad) = (envs[0].obs_dim(), envs[0].act_dim());
+    let mut rngs: Vec<EnvRng> = (0..batch)
+        .map(|i| {
+            let mut r = EnvRng::seed_from_u64(seed);
+            r.set_stream(i as u64 + 1);
+            r
+        })
+        .collect();
+    let mut obs = vec![0.0f32; batch * od];
+    let mut actions = vec![0.0f32; batch * ad];
+    let mut returns = vec![0.0f64; batch];
+    let mut max_len = vec![0u32; batch];
+    let mut active = vec![true; batch];
+    let mut started = 0usize;
+
+    let max_reward_per_step = {
+        let im = &settings.imitation;
+        let goal = match settings.goal {
+            Goal::None => 0.0,
+            Goal::RootVelocity { weight, .. }
+            | Goal::Heading { weight, .. }
+            | Goal::Target { weight, .. }
+            | Goal::Seat { weight, .. } => weight,
+        };
+        f64::from(im.pose.weight + im.velocity.weight + im.end_effector.weight + im.root.weight + goal)
+    };
+    let frames = settings.reference.frames() as u32;
+    let looping = settings.reference.looping;
+    let mut report = EvalReport {
+        skill: setup.spec.spec.name.clone(),
+        start,
+        trials: 0,
+        successes: 0,
+        falls: 0,
+        success_rate: 0.0,
+        normalized_length: 0.0,
+        normalized_return: 0.0,
+        mean_return: 0.0,
+    };
+    let mut pool = Vec::new();
+
+    let begin = |env: &mut HumanoidEnv<ImitationTask>, rng: &mut EnvRng, o: &mut [f32]| -> u32 {
+        env.reset(rng, o);
+        // The longest this episode can run: to the clip's end, or the time limit.
+        let left =
+            if looping { setup.max_steps } else { (frames - 1 - env.task().phase() as u32).min(setup.max_steps) };
+        left.max(1)
+    };
+    for i in 0..batch {
+        if started < trials {
+            max_len[i] = begin(&mut envs[i], &mut rngs[i], &mut obs[i * od..(i + 1) * od]);
+            started += 1;
+        } else {
+            active[i] = false;
+        }
+    }
+    while active.iter().any(|&a| a) {
+        skill.policy.act(&obs, &mut actions);
+        let outcomes: Vec<_> = envs
+            .par_iter_mut()
+            .zip(obs.par_chunks_mut(od))
+            .zip(actions.par_chunks_mut(ad))
+            .zip(active.par_iter())
+            .map(|(((env, o), a), &on)| {
+                if !on {
+                    return None;
+                }
+                a.iter_mut().for_each(|x| *x = x.clamp(-1.0, 1.0));
+                Some(env.step(a, o))
+            })
+            .collect();
+        for (i, out) in outcomes.into_iter().enumerate() {
+            let Some(out) = out else { continue };
+            returns[i] += f64::from(out.reward);
+            if !(out.terminated || out.truncated) {
+                continue;
+            }
+            let env = &mut envs[i];
+            let len = env.steps();
+            let on_seat = out.terms[5] > 0.5;
+            let success = !out.terminated && (!matches!(settings.goal, Goal::Seat { .. }) || on_seat);
+            report.trials += 1;
+            report.falls += usize::from(out.terminated);
+            report.successes += usize::from(success);
+            report.normalized_length += f64::from(len) / f64::from(max_len[i]);
+            report.normalized_return += returns[i] / (max_reward_per_step * f64::from(max_len[i])).max(1e-9);
+            report.mean_return += returns[i];
+            if success {
+                pool.push(PoolState::capture(env.world()));
+            }
+            returns[i] = 0.0;
+            if started < trials {
+                max_len[i] = begin(env, &mut rngs[i], &mut obs[i * od..(i + 1) * od]);
+                started += 1;
+            } else {
+                active[i] = false;
+            }
+        }
+    }
+    let n = report.trials.max(1) as f64;
+    report.success_rate = report.successes as f64 / n;
+    report.normalized_length /= n;
+    report.normalized_return /= n;
+    report.mean_return /= n;
+    Ok((report, pool))
+}
+
+/// The pool of `skill` from its successful end states.
+pub fn pool_of(setup: &SkillSetup, states: Vec<PoolState>) -> Pool {
+    Pool { skill: setup.spec.spec.name.clone(), body_hash: setup.model.body.content_hash(), states }
+}

@@ -1,0 +1,387 @@
+//! [`ImitationTask`]: track a reference clip (imitation reward) while reaching a goal (goal
+//! reward), starting from reference states or from predecessor skills' end poses, ending on a
+//! fall or when the clip runs out.
+
+use std::f64::consts::TAU;
+use std::sync::Arc;
+
+use rand::Rng;
+use repertoire_humanoid::{Task, TaskStep};
+use repertoire_learn::env::{EnvRng, MAX_TERMS};
+use repertoire_scenes::World;
+use repertoire_scenes::math::wrap_angle;
+use repertoire_scenes::world::spawn_point;
+
+use crate::pool::{Pool, PoolState};
+use crate::quat::{mul, rotate_z, yaw_quat};
+use crate::reference::{END_EFFECTORS, Reference, local_end_effectors, to_heading};
+use crate::spec::{Goal, Imitation, Init, Termination};
+
+/// Names of the reward terms and metrics each step reports (unweighted similarities in [0, 1],
+/// then the goal term, then whether the pelvis is on the seat).
+pub const TERM_NAMES: [&str; 6] = ["pose", "velocity", "end_effector", "root", "goal", "on_seat"];
+
+/// Everything about a skill's task that does not change between episodes; shared by all envs.
+#[derive(Debug, Clone)]
+pub struct TaskSettings {
+    /// The reference at the control rate.
+    pub reference: Reference,
+    /// Imitation terms.
+    pub imitation: Imitation,
+    /// Goal.
+    pub goal: Goal,
+    /// Episode starts.
+    pub init: Init,
+    /// Early termination.
+    pub termination: Termination,
+    /// Predecessors' end poses (for [`Init::Pools`]).
+    pub pools: Vec<Pool>,
+    /// For [`Goal::Seat`]: the chair's prop index and its pose relative to the clip, as
+    /// `(x, y, yaw)` in the clip's world.
+    pub seat: Option<(usize, [f64; 3])>,
+}
+
+/// The imitation task of one environment.
+#[derive(Debug)]
+pub struct ImitationTask {
+    settings: Arc<TaskSettings>,
+    /// Current reference frame.
+    phase: usize,
+    /// Completed cycles of a looping clip.
+    cycles: usize,
+    /// Clip-to-world transform of this episode: rotate by `yaw` about +z, then map the clip's
+    /// point `anchor` to `origin`.
+    yaw: f64,
+    anchor: [f64; 2],
+    origin: [f64; 2],
+    /// World heading at the start and the reference frame it matched.
+    start_heading: f64,
+    start_frame: usize,
+    /// Goal state: the target (world xy) and the last distance to it or to the seat.
+    target: [f64; 2],
+    last_distance: f64,
+    joints: Vec<f64>,
+}
+
+impl ImitationTask {
+    /// A task over shared settings.
+    pub fn new(settings: Arc<TaskSettings>) -> Self {
+        let dof = settings.reference.dof;
+        ImitationTask {
+            settings,
+            phase: 0,
+            cycles: 0,
+            yaw: 0.0,
+            anchor: [0.0; 2],
+            origin: [0.0; 2],
+            start_heading: 0.0,
+            start_frame: 0,
+            target: [0.0; 2],
+            last_distance: 0.0,
+            joints: vec![0.0; dof],
+        }
+    }
+
+    /// The shared settings.
+    pub fn settings(&self) -> &Arc<TaskSettings> {
+        &self.settings
+    }
+
+    /// The current reference frame.
+    pub fn phase(&self) -> usize {
+        self.phase
+    }
+
+    /// A clip-world point in this episode's world.
+    fn to_world(&self, p: [f64; 2]) -> [f64; 2] {
+        let d = rotate_z(self.yaw, [p[0] - self.anchor[0], p[1] - self.anchor[1], 0.0]);
+        [self.origin[0] + d[0], self.origin[1] + d[1]]
+    }
+
+    /// Frames per cycle of a looping clip (its last frame is the next cycle's first).
+    fn cycle_len(&self) -> usize {
+        self.settings.reference.frames() - 1
+    }
+
+    /// Places the character in reference frame `f` at the spawn point `(x, y)` facing `heading`.
+    fn place_reference(&mut self, world: &mut World, f: usize, x: f64, y: f64, heading: f64) {
+        let r = &self.settings.reference;
+        self.yaw = heading - r.heading[f];
+        self.anchor = [r.root_pos[f][0], r.root_pos[f][1]];
+        self.origin = [x, y];
+        let v = r.root_qvel[f];
+        let lin = rotate_z(self.yaw, [v[0], v[1], v[2]]);
+        let root_vel = [lin[0], lin[1], lin[2], v[3], v[4], v[5]];
+        let quat = mul(yaw_quat(self.yaw), r.root_quat[f]);
+        world
+            .set_motion([x, y, r.root_pos[f][2]], quat, r.joints_at(f), root_vel, Some(r.joint_vel_at(f)))
+            .expect("reference frames are validated finite and sized to the body");
+        self.phase = f;
+    }
+
+    /// Places the chair where the clip sits, in this episode's world.
+    fn place_seat(&self, world: &mut World) {
+        if let Some((prop, [sx, sy, syaw])) = self.settings.seat {
+            let [x, y] = self.to_world([sx, sy]);
+            world.move_prop(prop, x, y, wrap_angle(syaw + self.yaw)).expect("the seat prop is validated");
+        }
+    }
+
+    /// Distance from the pelvis to the seat centre (or to the walk target), for the goal.
+    fn goal_distance(&self, world: &World) -> f64 {
+        let p = world.pelvis_frame().pos;
+        match (&self.settings.goal, self.settings.seat) {
+            (Goal::Seat { .. }, Some((prop, _))) => {
+                let pl = world.placements()[prop];
+                let d = [p[0] - pl.pos[0], p[1] - pl.pos[1], p[2] - pl.top];
+                (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
+            }
+            _ => ((p[0] - self.target[0]).powi(2) + (p[1] - self.target[1]).powi(2)).sqrt(),
+        }
+    }
+
+    /// The reference heading change from the episode start to the current phase, across cycles.
+    fn reference_turn(&self) -> f64 {
+        let r = &self.settings.reference;
+        let per_cycle = r.heading[r.frames() - 1] - r.heading[0];
+        r.heading[self.phase] - r.heading[self.start_frame] + self.cycles as f64 * per_cycle
+    }
+}
+
+impl ImitationTask {
+    /// Places the character in reference frame `f` at `(x, y)` facing `heading`, at the
+    /// frame's velocities, and makes `f` the current phase (tests, viewers).
+    pub fn place_at_frame(&mut self, world: &mut World, f: usize, x: f64, y: f64, heading: f64) {
+        self.place_reference(world, f, x, y, heading);
+        self.place_seat(world);
+        self.start_frame = f;
+        self.start_heading = world.heading();
+        self.cycles = 0;
+        self.last_distance = self.goal_distance(world);
+    }
+
+    /// Scores `world` against reference frame `f`: the reward, whether it fell, and the terms.
+    pub fn score(&mut self, world: &World, f: usize) -> TaskStep {
+        let settings = Arc::clone(&self.settings);
+        let r = &settings.reference;
+        let im = &settings.imitation;
+        world.joint_angles(&mut self.joints);
+        let pose_err: f64 = self.joints.iter().zip(r.joints_at(f)).map(|(a, b)| wrap_angle(a - b).powi(2)).sum();
+        world.joint_velocities(&mut self.joints);
+        let vel_err: f64 = self.joints.iter().zip(r.joint_vel_at(f)).map(|(a, b)| (a - b).powi(2)).sum();
+        let idx = &world.model().index;
+        let pelvis = world.pelvis_frame();
+        let bodies = [idx.hands[0], idx.hands[1], idx.feet[0], idx.feet[1], idx.head];
+        let ee: [[f64; 3]; END_EFFECTORS] = bodies.map(|b| world.body_position(b));
+        let ee = local_end_effectors(&pelvis, ee);
+        let ee_err: f64 =
+            ee.iter().zip(&r.end_effectors[f]).map(|(a, b)| (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>()).sum();
+        let (pitch, roll) = (pelvis.pitch(), pelvis.roll());
+        let root_err = (pelvis.pos[2] - r.height[f]).powi(2)
+            + wrap_angle(pitch - r.pitch_roll[f][0]).powi(2)
+            + wrap_angle(roll - r.pitch_roll[f][1]).powi(2);
+
+        let contacts = world.contacts();
+        let on_seat = settings.seat.is_some_and(|(p, _)| contacts.pelvis_on_prop(p));
+        let goal = match &settings.goal {
+            Goal::None => 0.0,
+            Goal::RootVelocity { scale, .. } => {
+                let v = world.root_velocity_heading();
+                let e = (v[0] - r.velocity[f][0]).powi(2) + (v[1] - r.velocity[f][1]).powi(2);
+                similarity(*scale, e)
+            }
+            Goal::Heading { scale, .. } => {
+                let turned = wrap_angle(world.heading() - self.start_heading);
+                let e = wrap_angle(turned - self.reference_turn()).powi(2)
+                    + wrap_angle(pitch - r.pitch_roll[f][0]).powi(2)
+                    + wrap_angle(roll - r.pitch_roll[f][1]).powi(2);
+                similarity(*scale, e)
+            }
+            Goal::Target { .. } | Goal::Seat { .. } => {
+                let d = self.goal_distance(world);
+                let speed = (d - self.last_distance) / r.dt;
+                self.last_distance = d;
+                if on_seat { 1.0 } else { (1.0 / (1.0 + (10.0 * speed).exp())) as f32 }
+            }
+        };
+        let goal_weight = match settings.goal {
+            Goal::None => 0.0,
+            Goal::RootVelocity { weight, .. }
+            | Goal::Heading { weight, .. }
+            | Goal::Target { weight, .. }
+            | Goal::Seat { weight, .. } => weight,
+        };
+
+        let mut terms = [0.0; MAX_TERMS];
+        terms[0] = similarity(im.pose.scale, pose_err);
+        terms[1] = similarity(im.velocity.scale, vel_err);
+        terms[2] = similarity(im.end_effector.scale, ee_err);
+        terms[3] = similarity(im.root.scale, root_err);
+        terms[4] = goal;
+        terms[5] = if on_seat { 1.0 } else { 0.0 };
+        let t = &settings.termination;
+        let fell = (t.fall && contacts.fallen) || pelvis.pos[2] < t.min_height;
+        let reward = if fell {
+            0.0
+        } else {
+            im.pose.weight * terms[0]
+                + im.velocity.weight * terms[1]
+                + im.end_effector.weight * terms[2]
+                + im.root.weight * terms[3]
+                + goal_weight * goal
+        };
+        TaskStep { reward, terminated: fell, truncated: false, terms }
+    }
+}
+
+/// `exp(−scale · e)`.
+fn similarity(scale: f64, e: f64) -> f32 {
+    (-scale * e).exp() as f32
+}
+
+impl Task for ImitationTask {
+    fn term_names(&self) -> &[&'static str] {
+        &TERM_NAMES
+    }
+
+    fn extra_obs_dim(&self) -> usize {
+        3 + if matches!(self.settings.goal, Goal::Target { .. }) { 3 } else { 0 }
+    }
+
+    fn observe_extra(&self, world: &World, out: &mut [f32]) {
+        let r = &self.settings.reference;
+        let phi = self.phase as f64 / (r.frames() - 1) as f64;
+        out[0] = (TAU * phi).sin() as f32;
+        out[1] = (TAU * phi).cos() as f32;
+        out[2] = phi as f32;
+        if let Goal::Target { .. } = self.settings.goal {
+            let p = world.pelvis_frame().pos;
+            let d = to_heading(world.heading(), [self.target[0] - p[0], self.target[1] - p[1], 0.0]);
+            let dist = (d[0] * d[0] + d[1] * d[1]).sqrt();
+            let psi = d[1].atan2(d[0]);
+            out[3] = psi.sin() as f32;
+            out[4] = psi.cos() as f32;
+            out[5] = dist as f32;
+        }
+    }
+
+    fn reset(&mut self, world: &mut World, rng: &mut EnvRng) {
+        let model = Arc::clone(world.model());
+        let (x, y, heading) = match model.scenario.scenario.spawn.first() {
+            Some(zone) => {
+                let around = zone.around.as_deref().and_then(|n| model.prop_id(n)).map(|p| world.placements()[p]);
+                spawn_point(zone, around, rng)
+            }
+            None => (0.0, 0.0, rng.random_range(-std::f64::consts::PI..std::f64::consts::PI)),
+        };
+        world.reset(rng, x, y, heading);
+        let settings = Arc::clone(&self.settings);
+        let r = &settings.reference;
+        let last = r.frames() - 1;
+        let from_pool = match &settings.init {
+            Init::Pools { fraction, .. } => {
+                let total: usize = settings.pools.iter().map(|p| p.states.len()).sum();
+                if total > 0 && rng.random_bool(*fraction) {
+                    let mut k = rng.random_range(0..total);
+                    let mut chosen = None;
+                    for pool in &settings.pools {
+                        if k < pool.states.len() {
+                            chosen = Some(&pool.states[k]);
+                            break;
+                        }
+                        k -= pool.states.len();
+                    }
+                    chosen
+                } else {
+                    None
+                }
+            }
+            _ => None,
+        };
+        match (from_pool, &settings.init) {
+            (Some(state), _) => {
+                apply_pool_state(state, world, x, y, heading);
+                // The clip starts at frame 0 where the pool state stands.
+                self.yaw = heading - r.heading[0];
+                self.anchor = [r.root_pos[0][0], r.root_pos[0][1]];
+                self.origin = [x, y];
+                self.phase = 0;
+            }
+            (None, Init::Start) => self.place_reference(world, 0, x, y, heading),
+            (None, _) => {
+                let f = rng.random_range(0..last);
+                self.place_reference(world, f, x, y, heading)
+            }
+        }
+        self.place_seat(world);
+        self.cycles = 0;
+        self.start_frame = self.phase;
+        self.start_heading = world.heading();
+        if let Goal::Target { distance_m, azimuth_deg, .. } = settings.goal {
+            let d = rng.random_range(distance_m.0..=distance_m.1.max(distance_m.0));
+            let a = heading + rng.random_range(-azimuth_deg..=azimuth_deg.max(-azimuth_deg)).to_radians();
+            self.target = [x + d * a.cos(), y + d * a.sin()];
+        }
+        self.last_distance = self.goal_distance(world);
+    }
+
+    fn step(&mut self, world: &World, _action: &[f32]) -> TaskStep {
+        let settings = Arc::clone(&self.settings);
+        let r = &settings.reference;
+        // Advance the phase to the frame the character should now be at.
+        let mut done_with_clip = false;
+        if r.looping {
+            self.phase += 1;
+            if self.phase >= self.cycle_len() {
+                self.phase = 0;
+                self.cycles += 1;
+            }
+        } else {
+            self.phase = (self.phase + 1).min(r.frames() - 1);
+            done_with_clip = self.phase == r.frames() - 1;
+        }
+        let mut out = self.score(world, self.phase);
+        out.truncated = done_with_clip && !out.terminated;
+        out
+    }
+
+    fn snapshot(&self, out: &mut Vec<f64>) {
+        out.extend_from_slice(&[
+            self.phase as f64,
+            self.cycles as f64,
+            self.yaw,
+            self.anchor[0],
+            self.anchor[1],
+            self.origin[0],
+            self.origin[1],
+            self.start_heading,
+            self.start_frame as f64,
+            self.target[0],
+            self.target[1],
+            self.last_distance,
+        ]);
+    }
+
+    fn restore(&mut self, s: &[f64]) -> Result<(), String> {
+        if s.len() != 12 {
+            return Err(format!("imitation task snapshot has {} values, expected 12", s.len()));
+        }
+        self.phase = s[0] as usize;
+        self.cycles = s[1] as usize;
+        self.yaw = s[2];
+        self.anchor = [s[3], s[4]];
+        self.origin = [s[5], s[6]];
+        self.start_heading = s[7];
+        self.start_frame = s[8] as usize;
+        self.target = [s[9], s[10]];
+        self.last_distance = s[11];
+        if self.phase >= self.settings.reference.frames() {
+            return Err(format!("phase {} is past the clip's {} frames", self.phase, self.settings.reference.frames()));
+        }
+        Ok(())
+    }
+}
+
+fn apply_pool_state(state: &PoolState, world: &mut World, x: f64, y: f64, heading: f64) {
+    state.apply(world, x, y, heading).expect("pool states are validated on load");
+}

@@ -1,0 +1,190 @@
+//! The skill library: a folder per skill holding `manifest.ron` (what the skill was trained on
+//! and how) beside `policy.safetensors` (the acting policy) and, once evaluated,
+//! `end_poses.ron` (its successful end states, for transition fine-tuning). Loading a skill
+//! into a world whose body, observation layout or rates differ is an error naming the difference.
+
+use std::path::{Path, PathBuf};
+
+use repertoire_learn::acting::ActingPolicy;
+use repertoire_scenes::{ObservationLayout, WorldModel};
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Result, SkillError};
+use crate::spec::SkillSpec;
+
+/// Format of the manifests this build writes and reads.
+pub const LIBRARY_FORMAT: u32 = 1;
+
+/// Training figures recorded with a skill.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct TrainingFigures {
+    /// PPO iterations.
+    pub iterations: usize,
+    /// Environment steps.
+    pub samples: u64,
+    /// Wall-clock seconds.
+    pub seconds: f64,
+    /// Mean episode return over the last iterations.
+    pub mean_return: f32,
+    /// Mean episode length (control steps) over the last iterations.
+    pub mean_length: f32,
+    /// Share of episodes ended by a fall over the last iterations.
+    pub termination_rate: f32,
+}
+
+/// The clip a skill imitates.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ClipRecord {
+    /// Its name.
+    pub name: String,
+    /// Its content hash (of the retargeted clip, before resampling).
+    pub hash: String,
+    /// Where it came from.
+    pub origin: String,
+    /// Frames at the control rate.
+    pub frames: usize,
+}
+
+/// `manifest.ron` of one skill.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SkillManifest {
+    /// [`LIBRARY_FORMAT`].
+    pub format: u32,
+    /// The skill's name.
+    pub name: String,
+    /// Content hash of the body it drives.
+    pub body_hash: String,
+    /// Where that body came from.
+    pub body_origin: String,
+    /// The observation layout (then `extra_obs` task values).
+    pub observation: ObservationLayout,
+    /// Task values after the layout (phase, goal).
+    pub extra_obs: usize,
+    /// Action width.
+    pub act_dim: usize,
+    /// Control and physics rates (Hz).
+    pub control_hz: u32,
+    /// Physics rate (Hz).
+    pub physics_hz: u32,
+    /// MuJoCo's version string at training.
+    pub mujoco: String,
+    /// The clip.
+    pub clip: ClipRecord,
+    /// The spec it was trained from.
+    pub spec: SkillSpec,
+    /// Training figures.
+    pub training: TrainingFigures,
+    /// The command that trained it.
+    pub command: String,
+    /// Git commit of the code that trained it.
+    pub git_hash: Option<String>,
+    /// FNV-1a of `policy.safetensors` (checked on load).
+    pub policy_fnv1a: u64,
+}
+
+/// A loaded skill: its manifest and acting policy.
+#[derive(Debug, Clone)]
+pub struct LibrarySkill {
+    /// Its folder.
+    pub dir: PathBuf,
+    /// The manifest.
+    pub manifest: SkillManifest,
+    /// The policy.
+    pub policy: ActingPolicy,
+}
+
+fn fnv1a(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3))
+}
+
+/// Writes `bytes` to `path` via `path.partial` and a rename, so readers never see half a file.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let partial = PathBuf::from(format!("{}.partial", path.display()));
+    std::fs::write(&partial, bytes).map_err(|e| SkillError::io(&partial, "cannot write", e))?;
+    std::fs::rename(&partial, path).map_err(|e| SkillError::io(path, "cannot rename into place", e))
+}
+
+/// The folder of skill `name` in `library`.
+pub fn skill_dir(library: &Path, name: &str) -> PathBuf {
+    library.join(name)
+}
+
+/// Saves a skill: the policy first, then the manifest that vouches for it.
+pub fn save(library: &Path, manifest: &mut SkillManifest, policy: &ActingPolicy) -> Result<PathBuf> {
+    let dir = skill_dir(library, &manifest.name);
+    std::fs::create_dir_all(&dir).map_err(|e| SkillError::io(&dir, "cannot create the skill folder", e))?;
+    let policy_path = dir.join("policy.safetensors");
+    policy.save(&policy_path)?;
+    let bytes = std::fs::read(&policy_path).map_err(|e| SkillError::io(&policy_path, "cannot read back", e))?;
+    manifest.policy_fnv1a = fnv1a(&bytes);
+    let text = ron::ser::to_string_pretty(manifest, ron::ser::PrettyConfig::new().depth_limit(3))
+        .map_err(|e| SkillError::Invalid(format!("cannot serialise the manifest of `{}`: {e}", manifest.name)))?;
+    write_atomic(&dir.join("manifest.ron"), text.as_bytes())?;
+    Ok(dir)
+}
+
+/// Loads skill `name` from `library`, checking the policy file against the manifest.
+pub fn load(library: &Path, name: &str) -> Result<LibrarySkill> {
+    let dir = skill_dir(library, name);
+    let path = dir.join("manifest.ron");
+    let text =
+        std::fs::read_to_string(&path).map_err(|e| SkillError::io(&path, "cannot read the skill manifest", e))?;
+    let manifest: SkillManifest = ron::from_str(&text).map_err(|e| SkillError::ron(&path, e))?;
+    if manifest.format != LIBRARY_FORMAT {
+        return Err(SkillError::Mismatch {
+            path,
+            message: format!("library format {} (this build reads {LIBRARY_FORMAT})", manifest.format),
+        });
+    }
+    let policy_path = dir.join("policy.safetensors");
+    let bytes = std::fs::read(&policy_path).map_err(|e| SkillError::io(&policy_path, "cannot read the policy", e))?;
+    if fnv1a(&bytes) != manifest.policy_fnv1a {
+        return Err(SkillError::Mismatch {
+            path: policy_path,
+            message: "the policy file does not match its manifest's checksum (modified or truncated)".into(),
+        });
+    }
+    let policy = ActingPolicy::load(&policy_path)?;
+    if policy.obs_dim() != manifest.observation.size + manifest.extra_obs || policy.act_dim() != manifest.act_dim {
+        return Err(SkillError::Mismatch {
+            path,
+            message: format!(
+                "the policy maps {} → {} values, the manifest says {} → {}",
+                policy.obs_dim(),
+                policy.act_dim(),
+                manifest.observation.size + manifest.extra_obs,
+                manifest.act_dim
+            ),
+        });
+    }
+    Ok(LibrarySkill { dir, manifest, policy })
+}
+
+impl LibrarySkill {
+    /// Checks that this skill can drive the character of `model`: same body, same rates, and
+    /// the observation layout it was trained on.
+    pub fn check_fits(&self, model: &WorldModel) -> Result<()> {
+        let m = &self.manifest;
+        let path = self.dir.join("manifest.ron");
+        let mismatch = |message: String| Err(SkillError::Mismatch { path: path.clone(), message });
+        let hash = model.body.content_hash();
+        if hash != m.body_hash {
+            return mismatch(format!(
+                "skill `{}` was trained on body {} (hash {}), this scene's body is {} (hash {hash})",
+                m.name,
+                m.body_origin,
+                m.body_hash,
+                model.body.mjcf_path.display()
+            ));
+        }
+        let rates = &model.scenario.scenario.rates;
+        if rates.control_hz != m.control_hz || rates.physics_hz != m.physics_hz {
+            return mismatch(format!(
+                "skill `{}` runs at control {} Hz / physics {} Hz, this scene at {} / {}",
+                m.name, m.control_hz, m.physics_hz, rates.control_hz, rates.physics_hz
+            ));
+        }
+        let here = ObservationLayout::new(model, &m.observation.features)?;
+        here.ensure_same(&m.observation).or_else(|e| mismatch(format!("skill `{}`: {e}", m.name)))
+    }
+}

@@ -1,0 +1,97 @@
+//! End-pose pools: states in which a skill ended successfully, stored independent of where the
+//! character stood and which way it faced, so a successor skill can start from them anywhere.
+
+use std::path::Path;
+
+use repertoire_scenes::World;
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Result, SkillError};
+use crate::quat::{mul, yaw_of, yaw_quat};
+use crate::reference::to_heading;
+
+/// One character state with its position and heading factored out.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PoolState {
+    /// Pelvis (root) height.
+    pub height: f64,
+    /// Root orientation with its heading removed (w x y z).
+    pub quat: [f64; 4],
+    /// Root linear velocity in the heading frame.
+    pub velocity: [f64; 3],
+    /// Root angular velocity (root frame, MuJoCo's qvel convention).
+    pub angular: [f64; 3],
+    /// Actuated joint angles, map order.
+    pub joints: Vec<f64>,
+    /// Actuated joint velocities, map order.
+    pub joint_vel: Vec<f64>,
+}
+
+impl PoolState {
+    /// Captures `world`'s character.
+    pub fn capture(world: &World) -> Self {
+        let idx = &world.model().index;
+        let (q, v) = (world.data().qpos(), world.data().qvel());
+        let (r, d) = (idx.root_qpos, idx.root_dof);
+        let quat = [q[r + 3], q[r + 4], q[r + 5], q[r + 6]];
+        let yaw = yaw_of(quat);
+        PoolState {
+            height: q[r + 2],
+            quat: mul(yaw_quat(-yaw), quat),
+            velocity: to_heading(yaw, [v[d], v[d + 1], v[d + 2]]),
+            angular: [v[d + 3], v[d + 4], v[d + 5]],
+            joints: idx.joints.iter().map(|j| q[j.qpos]).collect(),
+            joint_vel: idx.joints.iter().map(|j| v[j.dof]).collect(),
+        }
+    }
+
+    /// Puts the character in this state at `(x, y)` facing `yaw`.
+    pub fn apply(&self, world: &mut World, x: f64, y: f64, yaw: f64) -> Result<()> {
+        let (s, c) = yaw.sin_cos();
+        let v = self.velocity;
+        let root_vel =
+            [c * v[0] - s * v[1], s * v[0] + c * v[1], v[2], self.angular[0], self.angular[1], self.angular[2]];
+        world.set_motion(
+            [x, y, self.height],
+            mul(yaw_quat(yaw), self.quat),
+            &self.joints,
+            root_vel,
+            Some(&self.joint_vel),
+        )?;
+        Ok(())
+    }
+}
+
+/// The end states of one skill.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Pool {
+    /// The skill that produced them.
+    pub skill: String,
+    /// The body's content hash.
+    pub body_hash: String,
+    /// The states.
+    pub states: Vec<PoolState>,
+}
+
+impl Pool {
+    /// Reads a pool written by [`Pool::save`].
+    pub fn load(path: &Path) -> Result<Self> {
+        let text =
+            std::fs::read_to_string(path).map_err(|e| SkillError::io(path, "cannot read the end-pose pool", e))?;
+        let pool: Pool = ron::from_str(&text).map_err(|e| SkillError::ron(path, e))?;
+        if let Some(k) = pool.states.iter().position(|s| {
+            let all = [s.height].into_iter().chain(s.quat).chain(s.velocity).chain(s.angular);
+            all.chain(s.joints.iter().copied()).chain(s.joint_vel.iter().copied()).any(|x| !x.is_finite())
+        }) {
+            return Err(SkillError::Invalid(format!("{}: state {k} holds a NaN or infinite value", path.display())));
+        }
+        Ok(pool)
+    }
+
+    /// Writes the pool atomically (temp file, then rename).
+    pub fn save(&self, path: &Path) -> Result<()> {
+        let text = ron::ser::to_string_pretty(self, ron::ser::PrettyConfig::new().depth_limit(1))
+            .map_err(|e| SkillError::Invalid(format!("{}: cannot serialise the pool: {e}", path.display())))?;
+        crate::library::write_atomic(path, text.as_bytes())
+    }
+}

@@ -1,0 +1,171 @@
+//! [`SkillSetup`]: a spec made concrete: its scene compiled, its clip imported, retargeted and
+//! laid out at the control rate, its pools loaded, ready to make environments.
+
+use std::path::Path;
+use std::sync::Arc;
+
+use repertoire_clip::{Clip, ClipBody, ClipSource, LoadedKeyframes, RetargetOptions};
+use repertoire_humanoid::HumanoidEnv;
+use repertoire_scenes::{ObservationLayout, ScenarioFile, WorldModel};
+
+use crate::error::{Result, SkillError};
+use crate::imitation::{ImitationTask, TaskSettings};
+use crate::library::ClipRecord;
+use crate::pool::Pool;
+use crate::reference::Reference;
+use crate::spec::{Goal, Init, SpecFile};
+
+/// The environment type of every skill.
+pub type SkillEnv = HumanoidEnv<ImitationTask>;
+
+/// Everything needed to make a skill's environments.
+pub struct SkillSetup {
+    /// The spec.
+    pub spec: SpecFile,
+    /// The compiled scene.
+    pub model: Arc<WorldModel>,
+    /// The body alone (clips, retargeting).
+    pub body: ClipBody,
+    /// The observation layout (before the task's phase and goal values).
+    pub layout: Arc<ObservationLayout>,
+    /// The task settings shared by all envs.
+    pub settings: Arc<TaskSettings>,
+    /// The clip as retargeted (before resampling).
+    pub clip: Clip,
+    /// Episode limit in control steps.
+    pub max_steps: u32,
+}
+
+/// Imports any clip file the project reads onto `body`: a retargeted clip (`.clip.ron`,
+/// `.npy`), a keyframe clip (`.ron`), or mocap (BVH, ASF/AMC, DeepMimic) retargeted with the
+/// shipped map (or `map`).
+pub fn load_clip(path: &Path, map: Option<&Path>, body: &ClipBody) -> Result<Clip> {
+    let name = path.file_name().map(|n| n.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+    if name.ends_with(".clip.ron") || name.ends_with(".npy") {
+        return Ok(Clip::load(path)?);
+    }
+    let source = ClipSource::from_path(path, None)?;
+    if let ClipSource::Keyframes(p) = &source {
+        return Ok(LoadedKeyframes::load(p)?.to_clip(body)?);
+    }
+    let map = map.map(repertoire_clip::map::LoadedMap::load).transpose()?;
+    let report = repertoire_clip::check(&source, body, map, None, &RetargetOptions::default())?;
+    Ok(report.clip)
+}
+
+impl SkillSetup {
+    /// Builds the skill of `spec`; predecessor pools (for [`Init::Pools`]) are read from
+    /// `library/<skill>/end_poses.ron`.
+    pub fn new(spec: SpecFile, library: &Path) -> Result<Self> {
+        let s = &spec.spec;
+        let scenario = match s.scene.as_str() {
+            "builtin:sit" => ScenarioFile::builtin_default(),
+            other => ScenarioFile::load(spec.resolve(other))?,
+        };
+        let model = Arc::new(WorldModel::build(scenario)?);
+        let body = ClipBody::new(model.body.clone())?;
+        let clip_path = spec.resolve(&s.clip.file);
+        if !clip_path.exists() {
+            let hint =
+                if s.clip.file.starts_with("pack:") { " (run scripts/setup.sh to install the clip pack)" } else { "" };
+            return Err(SkillError::Invalid(format!(
+                "{}: clip file {} does not exist{hint}",
+                spec.path.display(),
+                clip_path.display()
+            )));
+        }
+        let map = s.clip.map.as_deref().map(|m| spec.resolve(m));
+        let mut clip = load_clip(&clip_path, map.as_deref(), &body)?;
+        if let Some((a, b)) = s.clip.cut_s {
+            let frame = |t: f64| ((t * clip.fps).round() as usize).min(clip.frame_count());
+            clip = clip.cut(frame(a), frame(b))?;
+        }
+        if s.clip.mirror {
+            clip = clip.mirrored(&body)?;
+        }
+        clip.looping = s.clip.looping;
+        let control_hz = f64::from(model.scenario.scenario.rates.control_hz);
+        let reference = Reference::new(&clip, &body, control_hz)?;
+
+        let seat = match &s.goal {
+            Goal::Seat { prop, .. } => {
+                let id = model.prop_id(prop).ok_or_else(|| {
+                    SkillError::Invalid(format!(
+                        "{}: goal Seat names prop `{prop}`, which the scene {} lacks",
+                        spec.path.display(),
+                        model.scenario.path.display()
+                    ))
+                })?;
+                // The seat goes under the pelvis where the clip sits lowest, facing its heading.
+                let (f, _) = reference
+                    .height
+                    .iter()
+                    .enumerate()
+                    .fold((0, f64::INFINITY), |best, (i, &h)| if h < best.1 { (i, h) } else { best });
+                let p = reference.root_pos[f];
+                Some((id, [p[0], p[1], reference.heading[f]]))
+            }
+            _ => None,
+        };
+        let mut pools = Vec::new();
+        if let Init::Pools { from, .. } = &s.init {
+            for name in from {
+                let path = crate::library::skill_dir(library, name).join("end_poses.ron");
+                if !path.exists() {
+                    return Err(SkillError::Invalid(format!(
+                        "{}: init Pools needs {}; run `repertoire skill eval {name}` first",
+                        spec.path.display(),
+                        path.display()
+                    )));
+                }
+                let pool = Pool::load(&path)?;
+                if pool.body_hash != model.body.content_hash()
+                    || pool.states.iter().any(|st| st.joints.len() != reference.dof)
+                {
+                    return Err(SkillError::Mismatch {
+                        path,
+                        message: format!("end poses of `{name}` were recorded on another body"),
+                    });
+                }
+                pools.push(pool);
+            }
+        }
+        let max_steps = if reference.looping {
+            (s.episode_s * control_hz).round() as u32
+        } else {
+            ((reference.frames() - 1) as u32).min((s.episode_s * control_hz).round() as u32)
+        };
+        let layout = Arc::new(ObservationLayout::new(&model, &s.features)?);
+        let settings = Arc::new(TaskSettings {
+            reference,
+            imitation: s.imitation,
+            goal: s.goal.clone(),
+            init: s.init.clone(),
+            termination: s.termination,
+            pools,
+            seat,
+        });
+        Ok(SkillSetup { spec, model, body, layout, settings, clip, max_steps: max_steps.max(1) })
+    }
+
+    /// One environment.
+    pub fn env(&self) -> SkillEnv {
+        let task = ImitationTask::new(Arc::clone(&self.settings));
+        HumanoidEnv::with_layout(&self.model, Arc::clone(&self.layout), task, self.max_steps)
+    }
+
+    /// `n` environments.
+    pub fn envs(&self, n: usize) -> Vec<SkillEnv> {
+        (0..n).map(|_| self.env()).collect()
+    }
+
+    /// What the library records about the clip.
+    pub fn clip_record(&self) -> ClipRecord {
+        ClipRecord {
+            name: self.clip.name.clone(),
+            hash: self.clip.content_hash(),
+            origin: self.clip.origin.clone(),
+            frames: self.settings.reference.frames(),
+        }
+    }
+}

@@ -1,0 +1,246 @@
+//! The skill spec (RON): which clip, what the policy observes, the imitation and goal rewards,
+//! how episodes start and end, and the network and PPO settings.
+
+use std::path::{Path, PathBuf};
+
+use repertoire_learn::ppo::PpoConfig;
+use repertoire_scenes::Feature;
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Result, SkillError};
+
+/// Where a skill's reference clip comes from.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ClipRef {
+    /// The clip file: BVH, ASF/AMC, DeepMimic `.txt`, keyframe `.ron`, or a retargeted
+    /// `.clip.ron` / `.npy`. Relative paths are relative to the spec file; `pack:NAME` is a file
+    /// of the clip pack `scripts/setup.sh` installs in `third_party/clips`.
+    pub file: String,
+    /// A retarget map overriding the shipped one (relative to the spec file).
+    #[serde(default)]
+    pub map: Option<String>,
+    /// Use only `[start, end)` seconds of the clip.
+    #[serde(default)]
+    pub cut_s: Option<(f64, f64)>,
+    /// Mirror left and right (turn_right from a left turn).
+    #[serde(default)]
+    pub mirror: bool,
+    /// Treat the clip as a cycle whose phase wraps.
+    #[serde(default)]
+    pub looping: bool,
+}
+
+/// Weight and sharpness of one imitation term: `weight · exp(−scale · error²)`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Term {
+    /// Weight in the reward sum.
+    pub weight: f32,
+    /// The `k` in `exp(−k·e²)`.
+    pub scale: f64,
+}
+
+/// The imitation reward's terms. The default is Chao et al.'s sitting reward (0.5·pose +
+/// 0.05·velocity) plus DeepMimic's end-effector term and a root term.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Imitation {
+    /// Joint angles: Σ over joints of the wrapped angle difference².
+    pub pose: Term,
+    /// Joint velocities: Σ of the velocity difference².
+    pub velocity: Term,
+    /// End effectors relative to the pelvis in its heading frame: Σ of the distance².
+    pub end_effector: Term,
+    /// Pelvis height, pitch and roll: their differences².
+    pub root: Term,
+}
+
+impl Default for Imitation {
+    fn default() -> Self {
+        Imitation {
+            pose: Term { weight: 0.5, scale: 1.0 },
+            velocity: Term { weight: 0.05, scale: 0.1 },
+            end_effector: Term { weight: 0.15, scale: 40.0 },
+            root: Term { weight: 0.1, scale: 10.0 },
+        }
+    }
+}
+
+/// The goal reward added to the imitation reward.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum Goal {
+    /// Imitation only.
+    None,
+    /// Walk, stage 1: match the clip's root velocity in the heading frame,
+    /// `weight · exp(−scale · ‖v − v̂‖²)`.
+    RootVelocity {
+        /// Weight.
+        weight: f32,
+        /// Sharpness.
+        scale: f64,
+    },
+    /// Turns: match the clip's heading change since the episode start, pitch and roll,
+    /// `weight · exp(−scale · (Δyaw error² + pitch error² + roll error²))`.
+    Heading {
+        /// Weight.
+        weight: f32,
+        /// Sharpness.
+        scale: f64,
+    },
+    /// Walk, stage 2: a 2-D target `distance_m` away at an azimuth within ±`azimuth_deg` of the
+    /// start heading; the policy observes `[sin ψ, cos ψ, distance]`; reward
+    /// `weight / (1 + exp(10 · V))` with `V` the rate of change of the distance.
+    Target {
+        /// Weight.
+        weight: f32,
+        /// Distance range of the target (m).
+        distance_m: (f64, f64),
+        /// Azimuth range (degrees either side of the start heading).
+        azimuth_deg: f64,
+    },
+    /// Sit: the chair `prop` is placed under the clip's seated pelvis; reward
+    /// `weight / (1 + exp(10 · V))` with `V` the rate of change of the pelvis–seat-centre
+    /// distance, or `weight` while the pelvis touches the seat.
+    Seat {
+        /// Weight.
+        weight: f32,
+        /// The chair's prop name in the skill's scene.
+        prop: String,
+    },
+}
+
+/// Where episodes start.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum Init {
+    /// Reference-state initialisation: a uniformly random frame of the clip (not the last),
+    /// with its velocities.
+    Reference,
+    /// The clip's first frame.
+    Start,
+    /// End poses of the predecessor skills (transition fine-tuning): with probability
+    /// `fraction` a random state from their pools, else reference-state initialisation.
+    Pools {
+        /// Predecessor skills whose pools to draw from.
+        from: Vec<String>,
+        /// Share of episodes started from the pools.
+        fraction: f64,
+    },
+}
+
+/// When an episode ends early.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Termination {
+    /// End when a body part other than the feet (and, for sit, the pelvis on the seat)
+    /// touches the floor.
+    pub fall: bool,
+    /// End when the pelvis is lower than this (m).
+    pub min_height: f64,
+}
+
+impl Default for Termination {
+    fn default() -> Self {
+        Termination { fall: true, min_height: 0.3 }
+    }
+}
+
+/// A skill spec, as written in `skills/skill/specs/*.ron`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SkillSpec {
+    /// The skill's name (one of the scenario's known skills).
+    pub name: String,
+    /// The scene it trains in: a scenario file relative to the spec, or `builtin:sit`.
+    pub scene: String,
+    /// The reference clip.
+    pub clip: ClipRef,
+    /// What the policy observes (then the phase and the goal's values).
+    #[serde(default = "Feature::proprioception")]
+    pub features: Vec<Feature>,
+    /// The imitation reward.
+    #[serde(default)]
+    pub imitation: Imitation,
+    /// The goal reward.
+    pub goal: Goal,
+    /// Where episodes start.
+    pub init: Init,
+    /// Early termination.
+    #[serde(default)]
+    pub termination: Termination,
+    /// Episode time limit for looping clips (s); other clips end with the clip.
+    pub episode_s: f64,
+    /// PPO iterations of `skill train`.
+    pub iterations: usize,
+    /// PPO and network settings.
+    pub ppo: PpoConfig,
+}
+
+/// A spec with the file it came from.
+#[derive(Debug, Clone)]
+pub struct SpecFile {
+    /// The spec.
+    pub spec: SkillSpec,
+    /// Where it was read (relative paths in it are relative to its folder).
+    pub path: PathBuf,
+}
+
+/// The folder of the clip pack (`REPERTOIRE_CLIPS`, else the repository's `third_party/clips`).
+pub fn clip_pack_dir() -> PathBuf {
+    std::env::var_os("REPERTOIRE_CLIPS")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../third_party/clips"))
+}
+
+impl SpecFile {
+    /// Reads and checks a spec.
+    pub fn load(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path).map_err(|e| SkillError::io(path, "cannot read the skill spec", e))?;
+        Self::parse(path, &text)
+    }
+
+    /// Parses and checks spec text; `path` is used in messages and for relative paths.
+    pub fn parse(path: &Path, text: &str) -> Result<Self> {
+        let spec: SkillSpec = ron::Options::default()
+            .with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME)
+            .from_str(text)
+            .map_err(|e| SkillError::ron(path, e))?;
+        let bad = |m: String| Err(SkillError::Invalid(format!("{}: {m}", path.display())));
+        if !repertoire_scenes::scenario::KNOWN_SKILLS.contains(&spec.name.as_str()) {
+            return bad(format!(
+                "unknown skill `{}`; known skills: {}",
+                spec.name,
+                repertoire_scenes::scenario::KNOWN_SKILLS.join(", ")
+            ));
+        }
+        if !(spec.episode_s.is_finite() && spec.episode_s > 0.0) {
+            return bad(format!("episode_s must be positive, got {}", spec.episode_s));
+        }
+        if let Some((a, b)) = spec.clip.cut_s
+            && !(0.0 <= a && a < b)
+        {
+            return bad(format!("clip cut_s ({a}, {b}) must satisfy 0 ≤ start < end"));
+        }
+        if let Init::Pools { fraction, from } = &spec.init {
+            if !(0.0..=1.0).contains(fraction) {
+                return bad(format!("init Pools fraction must be in [0, 1], got {fraction}"));
+            }
+            if from.is_empty() {
+                return bad("init Pools names no predecessor skill".into());
+            }
+        }
+        if spec.ppo.num_envs == 0 || spec.ppo.num_steps == 0 {
+            return bad("ppo num_envs and num_steps must be positive".into());
+        }
+        Ok(SpecFile { spec, path: path.to_path_buf() })
+    }
+
+    /// Resolves a path written in the spec: `pack:NAME` in the clip pack, relative paths
+    /// against the spec's folder.
+    pub fn resolve(&self, file: &str) -> PathBuf {
+        if let Some(name) = file.strip_prefix("pack:") {
+            return clip_pack_dir().join(name);
+        }
+        let p = Path::new(file);
+        if p.is_absolute() { p.to_path_buf() } else { self.path.parent().unwrap_or(Path::new(".")).join(p) }
+    }
+}

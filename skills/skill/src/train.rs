@@ -1,0 +1,186 @@
+//! `skill train` and `skill finetune`: PPO on a skill's environments, a run directory with
+//! metrics and checkpoints, and a library entry at the end.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use indicatif::{ProgressBar, ProgressStyle};
+use repertoire_learn::acting::ActingPolicy;
+use repertoire_learn::checkpoint;
+use repertoire_learn::ppo::{IterationMetrics, Ppo};
+use repertoire_learn::run_dir::{RunDir, git_hash};
+
+use crate::error::{Result, SkillError};
+use crate::library::{self, LIBRARY_FORMAT, SkillManifest, TrainingFigures};
+use crate::skill::{SkillEnv, SkillSetup};
+
+/// Options of one training run.
+#[derive(Debug, Clone)]
+pub struct TrainOptions {
+    /// The skill library the result is written to (and pools / fine-tuning sources read from).
+    pub library: PathBuf,
+    /// The run directory (metrics, checkpoints).
+    pub run_dir: PathBuf,
+    /// Override of the spec's iteration count.
+    pub iterations: Option<usize>,
+    /// Override of the spec's number of environments.
+    pub envs: Option<usize>,
+    /// Override of the spec's seed.
+    pub seed: Option<u64>,
+    /// Continue from this checkpoint stem (`.../checkpoints/iter-000100`).
+    pub resume: Option<PathBuf>,
+    /// Start from the library's policy of this skill (transition fine-tuning).
+    pub init_from_library: bool,
+    /// Write a checkpoint every this many iterations (0: only at the end).
+    pub checkpoint_every: usize,
+    /// Step environments sequentially (deterministic timing-independent mode; results are
+    /// identical either way, this only pins the thread use).
+    pub serial: bool,
+    /// Show a progress bar.
+    pub progress: bool,
+    /// The command line, recorded in the manifest.
+    pub command: String,
+}
+
+/// What a training run produced.
+#[derive(Debug, Clone)]
+pub struct TrainOutcome {
+    /// The library folder of the skill.
+    pub skill_dir: PathBuf,
+    /// The run directory.
+    pub run_dir: PathBuf,
+    /// Figures recorded in the manifest.
+    pub figures: TrainingFigures,
+    /// Metrics of every iteration run here.
+    pub history: Vec<IterationMetrics>,
+}
+
+fn ppo_for(setup: &SkillSetup, opts: &TrainOptions) -> Result<Ppo<SkillEnv>> {
+    let mut cfg = setup.spec.spec.ppo.clone();
+    if let Some(n) = opts.envs {
+        cfg.num_envs = n;
+    }
+    if let Some(s) = opts.seed {
+        cfg.seed = s;
+    }
+    if opts.serial {
+        cfg.parallel_envs = false;
+    }
+    cfg.num_iterations = opts.iterations.unwrap_or(setup.spec.spec.iterations).max(1);
+    if let Some(stem) = &opts.resume {
+        return Ok(checkpoint::load(stem, setup.envs(cfg.num_envs))?);
+    }
+    let n = cfg.num_envs;
+    let mut ppo = Ppo::new(cfg, setup.envs(n));
+    if opts.init_from_library {
+        let name = &setup.spec.spec.name;
+        let prior = library::load(&opts.library, name)?;
+        prior.check_fits(&setup.model)?;
+        prior.policy.load_into(&mut ppo).map_err(|m| SkillError::Mismatch {
+            path: prior.dir.join("policy.safetensors"),
+            message: format!("cannot fine-tune `{name}` from it: {m}"),
+        })?;
+    }
+    Ok(ppo)
+}
+
+/// Trains (or fine-tunes) the skill of `setup` and writes it to the library.
+pub fn train(setup: &SkillSetup, opts: &TrainOptions) -> Result<TrainOutcome> {
+    let mut ppo = ppo_for(setup, opts)?;
+    let total = ppo.cfg.num_iterations;
+    let start_iter = ppo.iteration;
+    let mut run = RunDir::create(&opts.run_dir, &ppo.cfg)
+        .map_err(|e| SkillError::io(&opts.run_dir, "cannot create the run directory", e))?;
+    let bar = if opts.progress {
+        let bar = ProgressBar::new(total as u64);
+        bar.set_style(
+            ProgressStyle::with_template("{prefix} [{bar:30}] {pos}/{len} it, {elapsed} < {eta} | {msg}")
+                .expect("a valid template")
+                .progress_chars("=> "),
+        );
+        bar.set_prefix(format!("train {}", setup.spec.spec.name));
+        bar.set_position(start_iter as u64);
+        bar
+    } else {
+        ProgressBar::hidden()
+    };
+    let started = Instant::now();
+    let mut history = Vec::new();
+    let mut error = None;
+    while ppo.iteration < total {
+        let m = ppo.iterate();
+        if let Err(e) = run.log(&m) {
+            error = Some(SkillError::io(&opts.run_dir, "cannot append metrics", e));
+            break;
+        }
+        tracing::debug!(
+            skill = %setup.spec.spec.name,
+            iteration = m.iteration,
+            mean_return = m.mean_return,
+            mean_length = m.mean_length,
+            termination_rate = m.termination_rate,
+            samples_per_sec = m.samples_per_sec,
+            "iteration"
+        );
+        bar.set_message(format!(
+            "return {:.1}, length {:.0}, falls {:.0}%, {:.0} samples/s",
+            m.mean_return,
+            m.mean_length,
+            100.0 * m.termination_rate,
+            m.samples_per_sec
+        ));
+        bar.inc(1);
+        if opts.checkpoint_every > 0 && m.iteration % opts.checkpoint_every == 0 {
+            checkpoint::save(&mut ppo, &run.checkpoint_stem(m.iteration))?;
+        }
+        history.push(m);
+    }
+    bar.finish_and_clear();
+    if let Some(e) = error {
+        return Err(e);
+    }
+    let last = run.checkpoint_stem(ppo.iteration);
+    checkpoint::save(&mut ppo, &last)?;
+
+    // Figures over the last tenth of the iterations that finished episodes.
+    let tail: Vec<&IterationMetrics> =
+        history.iter().rev().take((history.len() / 10).max(1)).filter(|m| m.episodes > 0).collect();
+    let mean = |f: &dyn Fn(&IterationMetrics) -> f32| {
+        if tail.is_empty() { f32::NAN } else { tail.iter().map(|m| f(m)).sum::<f32>() / tail.len() as f32 }
+    };
+    let figures = TrainingFigures {
+        iterations: ppo.iteration,
+        samples: ppo.global_step,
+        seconds: started.elapsed().as_secs_f64(),
+        mean_return: mean(&|m| m.mean_return),
+        mean_length: mean(&|m| m.mean_length),
+        termination_rate: mean(&|m| m.termination_rate),
+    };
+    let rates = &setup.model.scenario.scenario.rates;
+    let mut manifest = SkillManifest {
+        format: LIBRARY_FORMAT,
+        name: setup.spec.spec.name.clone(),
+        body_hash: setup.model.body.content_hash(),
+        body_origin: setup.model.body.mjcf_path.display().to_string(),
+        observation: (*setup.layout).clone(),
+        extra_obs: ppo.envs.obs_dim() - setup.layout.size,
+        act_dim: ppo.envs.act_dim(),
+        control_hz: rates.control_hz,
+        physics_hz: rates.physics_hz,
+        mujoco: repertoire_scenes::mujoco_version(),
+        clip: setup.clip_record(),
+        spec: setup.spec.spec.clone(),
+        training: figures.clone(),
+        command: opts.command.clone(),
+        git_hash: git_hash(),
+        policy_fnv1a: 0,
+    };
+    let skill_dir = library::save(&opts.library, &mut manifest, &ActingPolicy::from_ppo(&ppo))?;
+    Ok(TrainOutcome { skill_dir, run_dir: run.path().to_path_buf(), figures, history })
+}
+
+/// A fresh run directory under `runs/`: `<skill>-<unix seconds>-s<seed>`.
+pub fn default_run_dir(runs: &Path, skill: &str, seed: u64) -> PathBuf {
+    let secs = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
+    runs.join(format!("{skill}-{secs}-s{seed}"))
+}

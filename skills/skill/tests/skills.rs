@@ -1,0 +1,207 @@
+//! Skills against real MuJoCo and the real clip pack: the imitation reward is at its maximum
+//! when the body replays its clip and falls as it diverges; end-pose pools and library entries
+//! round-trip; a library skill refuses a world with another body.
+
+use std::path::{Path, PathBuf};
+
+use rand::SeedableRng;
+use repertoire_learn::env::{Env, EnvRng};
+use repertoire_skill::eval::{StartFrom, evaluate};
+use repertoire_skill::imitation::ImitationTask;
+use repertoire_skill::library;
+use repertoire_skill::pool::{Pool, PoolState};
+use repertoire_skill::train::{TrainOptions, train};
+use repertoire_skill::{SkillSetup, SpecFile};
+
+fn specs() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("specs")
+}
+
+fn temp(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("repertoire-skill-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    dir
+}
+
+fn setup(spec: &str, library: &Path) -> SkillSetup {
+    let spec = SpecFile::load(&specs().join(spec)).expect("the shipped spec parses");
+    SkillSetup::new(spec, library).expect("the shipped spec builds (needs scripts/setup.sh's clip pack)")
+}
+
+#[test]
+fn replaying_the_clip_scores_the_maximum_and_diverging_scores_less() {
+    for spec in ["walk.ron", "turn_left.ron", "turn_right.ron", "sit.ron"] {
+        let s = setup(spec, &temp("replay"));
+        let mut env = s.env();
+        let mut task = ImitationTask::new(s.settings.clone());
+        let r = &s.settings.reference;
+        let frames = r.frames();
+        for f in (0..frames).step_by((frames / 12).max(1)) {
+            task.place_at_frame(env.world_mut(), f, 1.0, -2.0, 0.7);
+            let out = task.score(env.world(), f);
+            for (k, name) in ["pose", "velocity", "end_effector", "root"].iter().enumerate() {
+                assert!(
+                    out.terms[k] > 0.999,
+                    "{spec} frame {f}: {name} similarity {} on the clip itself",
+                    out.terms[k]
+                );
+            }
+            assert!(!out.terminated, "{spec} frame {f}: the clip's own pose counts as a fall");
+            // The same pose compared with a frame a third of the clip away scores lower.
+            let other = (f + frames / 3) % frames;
+            let off = task.score(env.world(), other);
+            assert!(
+                off.terms[0] < out.terms[0] - 0.01,
+                "{spec}: pose term does not fall off ({} vs {})",
+                off.terms[0],
+                out.terms[0]
+            );
+            assert!(off.reward < out.reward, "{spec}: reward does not fall off");
+        }
+    }
+}
+
+#[test]
+fn turn_right_is_the_mirrored_left_turn() {
+    let lib = temp("turns");
+    let left = setup("turn_left.ron", &lib).settings.reference.heading_change().to_degrees();
+    let right = setup("turn_right.ron", &lib).settings.reference.heading_change().to_degrees();
+    assert!(left > 40.0, "turn_left turns {left:.1}°");
+    assert!((left + right).abs() < 1.0, "turn_right ({right:.1}°) mirrors turn_left ({left:.1}°)");
+}
+
+#[test]
+fn episodes_start_on_the_clip_and_end_with_it() {
+    let s = setup("turn_left.ron", &temp("episodes"));
+    let mut env = s.env();
+    let mut rng = EnvRng::seed_from_u64(5);
+    let mut obs = vec![0.0; env.obs_dim()];
+    env.reset(&mut rng, &mut obs);
+    assert!(obs.iter().all(|v| v.is_finite()));
+    let start = env.task().phase();
+    let frames = s.settings.reference.frames();
+    assert!(start < frames - 1);
+    // Track the reference open-loop with its own joint angles as PD targets: the episode is
+    // cut when the clip ends (truncation), unless the body falls first.
+    let mut steps = 0;
+    loop {
+        let f = (env.task().phase() + 1).min(frames - 1);
+        let target = s.settings.reference.joints_at(f).to_vec();
+        let action: Vec<f32> = target.iter().enumerate().map(|(k, &q)| env.action_for(k, q)).collect();
+        let out = env.step(&action, &mut obs);
+        steps += 1;
+        if out.terminated || out.truncated {
+            if out.truncated {
+                assert_eq!(steps, frames - 1 - start, "truncated exactly at the clip's end");
+            }
+            break;
+        }
+        assert!(steps < frames, "the episode outlived its clip");
+    }
+}
+
+#[test]
+fn pools_round_trip_and_restore_the_state() {
+    let s = setup("walk.ron", &temp("pool"));
+    let mut env = s.env();
+    let mut rng = EnvRng::seed_from_u64(2);
+    let mut obs = vec![0.0; env.obs_dim()];
+    env.reset(&mut rng, &mut obs);
+    let state = PoolState::capture(env.world());
+    let pool = Pool { skill: "walk".into(), body_hash: s.model.body.content_hash(), states: vec![state.clone(); 3] };
+    let dir = temp("pool-file");
+    let path = dir.join("end_poses.ron");
+    pool.save(&path).expect("save");
+    let back = Pool::load(&path).expect("load");
+    assert_eq!(back, pool);
+    // Applying the state elsewhere and capturing it again gives it back.
+    state.apply(env.world_mut(), -3.0, 4.0, 2.0).expect("apply");
+    let again = PoolState::capture(env.world());
+    for (a, b) in again.joints.iter().zip(&state.joints).chain(again.joint_vel.iter().zip(&state.joint_vel)) {
+        assert!((a - b).abs() < 1e-9);
+    }
+    assert!((again.height - state.height).abs() < 1e-9);
+    for k in 0..3 {
+        assert!((again.velocity[k] - state.velocity[k]).abs() < 1e-9);
+    }
+    // A pool with a NaN is refused, naming the state.
+    std::fs::write(&path, std::fs::read_to_string(&path).unwrap().replacen("height: ", "height: NaN, _x: ", 1))
+        .unwrap();
+    assert!(Pool::load(&path).is_err());
+}
+
+#[test]
+fn a_trained_skill_round_trips_through_the_library_and_refuses_another_body() {
+    let lib = temp("library");
+    let s = setup("turn_left.ron", &lib);
+    let opts = TrainOptions {
+        library: lib.clone(),
+        run_dir: lib.join("run"),
+        iterations: Some(2),
+        envs: Some(4),
+        seed: Some(3),
+        resume: None,
+        init_from_library: false,
+        checkpoint_every: 0,
+        serial: false,
+        progress: false,
+        command: "test".into(),
+    };
+    let out = train(&s, &opts).expect("train");
+    assert_eq!(out.history.len(), 2);
+    assert!(out.run_dir.join("metrics.csv").exists());
+    let mut skill = library::load(&lib, "turn_left").expect("load");
+    assert_eq!(skill.manifest.body_hash, s.model.body.content_hash());
+    assert_eq!(skill.manifest.clip.hash, s.clip.content_hash());
+    skill.check_fits(&s.model).expect("fits its own scene");
+    let (report, ends) = evaluate(&s, &mut skill, StartFrom::ClipStart, 6, 3, 9).expect("evaluate");
+    assert_eq!(report.trials, 6);
+    assert_eq!(ends.len(), report.successes);
+    assert!((0.0..=1.0).contains(&report.normalized_length) && report.normalized_length > 0.0);
+
+    // A scene with a different body: the same humanoid with one joint's range changed.
+    let xml = repertoire_scenes::BodyDef::humanoid().mjcf.replacen("kp=\"600\"", "kp=\"610\"", 1);
+    let dir = temp("other-body");
+    std::fs::write(dir.join("other.xml"), &xml).unwrap();
+    let map = repertoire_scenes::BodyDef::humanoid().map_text;
+    std::fs::write(dir.join("other.map.ron"), map).unwrap();
+    let scenario = std::fs::read_to_string(specs().join("arena.ron")).unwrap().replace(
+        "body: Humanoid",
+        &format!(
+            "body: Mjcf(file: \"{}\", map: \"{}\")",
+            dir.join("other.xml").display(),
+            dir.join("other.map.ron").display()
+        ),
+    );
+    std::fs::write(dir.join("arena.ron"), scenario).unwrap();
+    let other = repertoire_scenes::ScenarioFile::load(dir.join("arena.ron")).expect("scenario with the other body");
+    let other = repertoire_scenes::WorldModel::build(other).expect("the other body builds");
+    let err = skill.check_fits(&other).expect_err("another body is refused").to_string();
+    assert!(err.contains("trained on body") && err.contains("manifest.ron"), "{err}");
+
+    // A corrupted policy file is refused with the file named.
+    let policy = lib.join("turn_left").join("policy.safetensors");
+    let mut bytes = std::fs::read(&policy).unwrap();
+    let n = bytes.len();
+    bytes[n - 3] ^= 0x55;
+    std::fs::write(&policy, bytes).unwrap();
+    let err = library::load(&lib, "turn_left").expect_err("corrupt policy").to_string();
+    assert!(err.contains("policy.safetensors"), "{err}");
+}
+
+#[test]
+fn bad_specs_are_refused_with_the_place() {
+    let dir = temp("bad-spec");
+    let text = std::fs::read_to_string(specs().join("walk.ron")).unwrap();
+    let bad = text.replace("name: \"walk\"", "name: \"moonwalk\"");
+    let err = SpecFile::parse(&dir.join("w.ron"), &bad).expect_err("unknown skill").to_string();
+    assert!(err.contains("unknown skill `moonwalk`") && err.contains("w.ron"), "{err}");
+    let bad = text.replace("episode_s: 10.0", "episode_s: 10.0, wobble: 3");
+    let err = SpecFile::parse(&dir.join("w.ron"), &bad).expect_err("unknown field").to_string();
+    assert!(err.contains("w.ron:") && err.contains("wobble"), "{err}");
+    let bad = text.replace("pack:deepmimic/walk_forward.txt", "pack:deepmimic/nope.txt");
+    let spec = SpecFile::parse(&specs().join("w.ron"), &bad).expect("parses");
+    let err = SkillSetup::new(spec, &dir).err().expect("missing clip").to_string();
+    assert!(err.contains("nope.txt") && err.contains("does not exist"), "{err}");
+}

@@ -1,0 +1,211 @@
+//! `repertoire skill train SPEC`, `skill finetune SPEC --from A,B`, `skill eval SPEC`.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+use clap::{Args, Subcommand};
+use repertoire_skill::eval::{StartFrom, evaluate, pool_of};
+use repertoire_skill::library;
+use repertoire_skill::spec::Init;
+use repertoire_skill::train::{TrainOptions, default_run_dir, train};
+use repertoire_skill::{SkillSetup, SpecFile};
+
+/// Where trained skills go unless `--library` says otherwise (committed with the repository).
+const DEFAULT_LIBRARY: &str = "skills/library";
+
+#[derive(Debug, Subcommand)]
+pub enum SkillCommand {
+    /// Train a skill from its spec (stage one: reference-state initialisation) into the library.
+    Train {
+        /// The skill spec (e.g. skills/skill/specs/walk.ron).
+        spec: PathBuf,
+        #[command(flatten)]
+        common: TrainArgs,
+    },
+    /// Fine-tune a library skill from the end poses of the skills that precede it.
+    Finetune {
+        /// The skill spec.
+        spec: PathBuf,
+        /// Predecessor skills whose end-pose pools (from `skill eval`) start the episodes.
+        #[arg(long, value_delimiter = ',', required = true)]
+        from: Vec<String>,
+        /// Share of episodes started from the pools (the rest use reference-state init).
+        #[arg(long, default_value_t = 0.7)]
+        fraction: f64,
+        #[command(flatten)]
+        common: TrainArgs,
+    },
+    /// Evaluate a library skill: success from the clip start and from predecessors' end poses,
+    /// normalised episode length and return; writes its end-pose pool.
+    Eval {
+        /// The skill spec (the library entry of the same name is evaluated).
+        spec: PathBuf,
+        /// Skill library folder.
+        #[arg(long, default_value = DEFAULT_LIBRARY)]
+        library: PathBuf,
+        /// Trials per start condition.
+        #[arg(long, default_value_t = 1000)]
+        trials: usize,
+        /// Environments stepped together.
+        #[arg(long, default_value_t = 32)]
+        batch: usize,
+        /// Seed of the trials.
+        #[arg(long, default_value_t = 12345)]
+        seed: u64,
+        /// Also evaluate from these predecessors' end poses (default: the spec's Pools, if any).
+        #[arg(long, value_delimiter = ',')]
+        from: Vec<String>,
+        /// Do not write the end-pose pool.
+        #[arg(long)]
+        no_pool: bool,
+    },
+}
+
+/// Options shared by `train` and `finetune`.
+#[derive(Debug, Args)]
+pub struct TrainArgs {
+    /// Skill library folder.
+    #[arg(long, default_value = DEFAULT_LIBRARY)]
+    library: PathBuf,
+    /// Run directory (default: runs/<skill>-<time>-s<seed>).
+    #[arg(long)]
+    run_dir: Option<PathBuf>,
+    /// PPO iterations (default: the spec's).
+    #[arg(long)]
+    iterations: Option<usize>,
+    /// Parallel environments (default: the spec's).
+    #[arg(long)]
+    envs: Option<usize>,
+    /// Seed (default: the spec's).
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Resume from a checkpoint stem (…/checkpoints/iter-000100).
+    #[arg(long)]
+    resume: Option<PathBuf>,
+    /// Write a checkpoint every N iterations.
+    #[arg(long, default_value_t = 100)]
+    checkpoint_every: usize,
+    /// Step environments on one thread (same numbers, fixed thread use).
+    #[arg(long)]
+    serial: bool,
+}
+
+pub fn run(cmd: SkillCommand) -> Result<()> {
+    let command = std::env::args().collect::<Vec<_>>().join(" ");
+    match cmd {
+        SkillCommand::Train { spec, common } => train_cmd(&spec, None, common, command),
+        SkillCommand::Finetune { spec, from, fraction, common } => {
+            train_cmd(&spec, Some((from, fraction)), common, command)
+        }
+        SkillCommand::Eval { spec, library, trials, batch, seed, from, no_pool } => {
+            eval_cmd(&spec, &library, trials, batch, seed, from, no_pool)
+        }
+    }
+}
+
+fn train_cmd(spec_path: &Path, finetune: Option<(Vec<String>, f64)>, a: TrainArgs, command: String) -> Result<()> {
+    let mut spec = SpecFile::load(spec_path)?;
+    let init_from_library = finetune.is_some();
+    if let Some((from, fraction)) = finetune {
+        spec.spec.init = Init::Pools { from, fraction };
+    }
+    let setup = SkillSetup::new(spec, &a.library)?;
+    let s = &setup.spec.spec;
+    let seed = a.seed.unwrap_or(s.ppo.seed);
+    let run_dir = a.run_dir.unwrap_or_else(|| default_run_dir(Path::new("runs"), &s.name, seed));
+    tracing::info!(
+        skill = %s.name,
+        clip = %setup.clip.origin,
+        frames = setup.settings.reference.frames(),
+        run_dir = %run_dir.display(),
+        "training"
+    );
+    let opts = TrainOptions {
+        library: a.library.clone(),
+        run_dir,
+        iterations: a.iterations,
+        envs: a.envs,
+        seed: a.seed,
+        resume: a.resume,
+        init_from_library,
+        checkpoint_every: a.checkpoint_every,
+        serial: a.serial,
+        progress: true,
+        command,
+    };
+    let out = train(&setup, &opts).with_context(|| format!("training {}", spec_path.display()))?;
+    let f = &out.figures;
+    println!("| skill | iterations | samples | minutes | mean return | mean length (steps) | falls |");
+    println!("|---|---:|---:|---:|---:|---:|---:|");
+    println!(
+        "| {} | {} | {} | {:.1} | {:.2} | {:.1} | {:.0}% |",
+        s.name,
+        f.iterations,
+        f.samples,
+        f.seconds / 60.0,
+        f.mean_return,
+        f.mean_length,
+        100.0 * f.termination_rate
+    );
+    println!("skill written to {}; run in {}", out.skill_dir.display(), out.run_dir.display());
+    Ok(())
+}
+
+fn eval_cmd(
+    spec_path: &Path,
+    library: &Path,
+    trials: usize,
+    batch: usize,
+    seed: u64,
+    from: Vec<String>,
+    no_pool: bool,
+) -> Result<()> {
+    let mut spec = SpecFile::load(spec_path)?;
+    let predecessors = if from.is_empty() {
+        match &spec.spec.init {
+            Init::Pools { from, .. } => from.clone(),
+            _ => Vec::new(),
+        }
+    } else {
+        from
+    };
+    if !predecessors.is_empty() {
+        spec.spec.init = Init::Pools { from: predecessors.clone(), fraction: 1.0 };
+    }
+    let setup = SkillSetup::new(spec, library)?;
+    let name = setup.spec.spec.name.clone();
+    let mut skill = library::load(library, &name)?;
+    let mut rows = Vec::new();
+    let (report, ends) = evaluate(&setup, &mut skill, StartFrom::ClipStart, trials, batch, seed)?;
+    rows.push(report);
+    if !predecessors.is_empty() {
+        match evaluate(&setup, &mut skill, StartFrom::Predecessors, trials, batch, seed + 1) {
+            Ok((report, _)) => rows.push(report),
+            Err(e) => println!("not evaluated from predecessors' end poses: {e}"),
+        }
+    }
+    println!("| skill | start | trials | success | falls | normalised length | normalised return |");
+    println!("|---|---|---:|---:|---:|---:|---:|");
+    for r in &rows {
+        let start = match r.start {
+            StartFrom::ClipStart => "clip start".to_string(),
+            StartFrom::Predecessors => format!("end poses of {}", predecessors.join(", ")),
+        };
+        println!(
+            "| {} | {start} | {} | {:.1}% | {:.1}% | {:.3} | {:.3} |",
+            r.skill,
+            r.trials,
+            100.0 * r.success_rate,
+            100.0 * r.falls as f64 / r.trials.max(1) as f64,
+            r.normalized_length,
+            r.normalized_return
+        );
+    }
+    if !no_pool {
+        let pool = pool_of(&setup, ends);
+        let path = library::skill_dir(library, &name).join("end_poses.ron");
+        pool.save(&path)?;
+        println!("{} successful end poses written to {}", pool.states.len(), path.display());
+    }
+    Ok(())
+}
