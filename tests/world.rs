@@ -161,7 +161,7 @@ fn observations_follow_their_layout() {
     let mut features = Feature::proprioception();
     features.push(Feature::PropPose("chair".into()));
     let layout = ObservationLayout::new(&model, &features).unwrap();
-    assert_eq!(layout.size, 25 + 25 + 1 + 3 + 2 + 2 + 5);
+    assert_eq!(layout.size, 25 + 25 + 1 + 3 + 2 + 3 + 2 + 5);
     let mut world = model.new_world();
     world.place_standing(2.0, 0.0, std::f64::consts::PI); // 2 m in front of the chair, facing it
     let mut obs = vec![0.0f32; layout.size];

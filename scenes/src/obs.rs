@@ -21,6 +21,8 @@ pub enum Feature {
     RootVelocity,
     /// Pelvis pitch and roll (radians).
     PitchRoll,
+    /// The root's angular velocity in the pelvis frame (rad/s; MuJoCo's free-joint qvel).
+    RootAngularVelocity,
     /// Foot touch sensors as 0/1, map order.
     FootContacts,
     /// A prop's pose relative to the pelvis in the heading frame: dx, dy, dz, sin Δyaw, cos Δyaw.
@@ -36,6 +38,7 @@ impl Feature {
             Feature::RootHeight => "root_height".into(),
             Feature::RootVelocity => "root_velocity".into(),
             Feature::PitchRoll => "pitch_roll".into(),
+            Feature::RootAngularVelocity => "root_angular_velocity".into(),
             Feature::FootContacts => "foot_contacts".into(),
             Feature::PropPose(p) => format!("prop_pose:{p}"),
         }
@@ -49,6 +52,7 @@ impl Feature {
             Feature::RootHeight,
             Feature::RootVelocity,
             Feature::PitchRoll,
+            Feature::RootAngularVelocity,
             Feature::FootContacts,
         ]
     }
@@ -89,7 +93,7 @@ impl ObservationLayout {
             let len = match f {
                 Feature::JointAngles | Feature::JointVelocities => dof,
                 Feature::RootHeight => 1,
-                Feature::RootVelocity => 3,
+                Feature::RootVelocity | Feature::RootAngularVelocity => 3,
                 Feature::PitchRoll => 2,
                 Feature::FootContacts => model.index.foot_touch.len(),
                 Feature::PropPose(name) => {
@@ -161,6 +165,12 @@ impl World {
                     let (p, r) = self.pitch_roll();
                     dst[0] = p as f32;
                     dst[1] = r as f32;
+                }
+                Feature::RootAngularVelocity => {
+                    let d = idx.root_dof + 3;
+                    for (o, &v) in dst.iter_mut().zip(&data.qvel()[d..d + 3]) {
+                        *o = v as f32;
+                    }
                 }
                 Feature::FootContacts => {
                     for (o, &adr) in dst.iter_mut().zip(&idx.foot_touch) {

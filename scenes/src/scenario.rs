@@ -40,9 +40,24 @@ pub struct Scenario {
     /// The skills the meta-controller may use.
     #[serde(default)]
     pub skills: Vec<String>,
+    /// Which skill may follow which (absent: any listed skill may follow any other).
+    #[serde(default)]
+    pub skill_graph: Option<SkillGraphSpec>,
     /// Zone curriculum for training the meta-controller.
     #[serde(default)]
     pub curriculum: Option<Curriculum>,
+}
+
+/// The skill graph of a scenario: the skills an episode may start with and the allowed
+/// transitions. Continuing the current skill is always allowed. A fixed-order chain
+/// (walk → turn_left → sit) is a graph with one path.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SkillGraphSpec {
+    /// Skills an episode may start with.
+    pub start: Vec<String>,
+    /// Allowed transitions `(from, to)`.
+    pub edges: Vec<(String, String)>,
 }
 
 /// Where the body comes from.
@@ -631,6 +646,23 @@ impl ScenarioFile {
             }
             if !skills.insert(skill.as_str()) {
                 return Err(self.invalid(Some(skill), format!("skill `{skill}` is listed twice")));
+            }
+        }
+
+        if let Some(g) = &s.skill_graph {
+            if g.start.is_empty() {
+                return Err(self.invalid(Some("skill_graph"), "the skill graph names no start skill"));
+            }
+            for name in g.start.iter().chain(g.edges.iter().flat_map(|(a, b)| [a, b])) {
+                if !skills.contains(name.as_str()) {
+                    return Err(self.invalid(
+                        Some(name),
+                        format!(
+                            "the skill graph names `{name}`, which `skills` does not list ({})",
+                            s.skills.join(", ")
+                        ),
+                    ));
+                }
             }
         }
 

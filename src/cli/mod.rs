@@ -2,6 +2,7 @@
 
 mod bench;
 mod clip;
+mod meta;
 mod run;
 mod scene;
 mod skill;
@@ -38,6 +39,9 @@ pub enum Command {
     /// Train, fine-tune and evaluate skills.
     #[command(subcommand)]
     Skill(skill::SkillCommand),
+    /// Train and evaluate the meta-controller of a sitting scenario.
+    #[command(subcommand)]
+    Meta(meta::MetaCommand),
 }
 
 /// Dispatches one parsed command line.
@@ -48,6 +52,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Bench(cmd) => bench::run(cmd),
         Command::Clip(cmd) => clip::run(cmd),
         Command::Skill(cmd) => skill::run(cmd),
+        Command::Meta(cmd) => meta::run(cmd),
     }
 }
 

@@ -52,13 +52,63 @@ pub struct HumanoidEnv<T: Task> {
     task: T,
     max_steps: u32,
     steps: u32,
-    /// Per actuated joint (map order): the standing angle and the spans above and below it.
-    ctrl_mid: Vec<f64>,
-    ctrl_up: Vec<f64>,
-    ctrl_down: Vec<f64>,
+    map: ActionMap,
     targets: Vec<f64>,
     lo: Vec<f32>,
     hi: Vec<f32>,
+}
+
+/// How normalised actions in `[-1, 1]` become PD targets: piecewise linearly per actuated
+/// joint, 0 at the standing pose, ±1 at the ends of the actuator's control range. Shared by
+/// skill training and by the meta-controller, which runs the same frozen skills.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ActionMap {
+    /// Per actuated joint (map order): the standing angle and the spans above and below it.
+    mid: Vec<f64>,
+    up: Vec<f64>,
+    down: Vec<f64>,
+}
+
+impl ActionMap {
+    /// The map of `model`'s character.
+    pub fn new(model: &WorldModel) -> Self {
+        let joints = &model.index.joints;
+        let q0 = model.mj_model().qpos0();
+        let mid: Vec<f64> = joints.iter().map(|j| q0[j.qpos].clamp(j.ctrl_range[0], j.ctrl_range[1])).collect();
+        let up = joints.iter().zip(&mid).map(|(j, m)| j.ctrl_range[1] - m).collect();
+        let down = joints.iter().zip(&mid).map(|(j, m)| m - j.ctrl_range[0]).collect();
+        ActionMap { mid, up, down }
+    }
+
+    /// Number of actuated joints.
+    pub fn len(&self) -> usize {
+        self.mid.len()
+    }
+
+    /// Whether the body has no actuated joint.
+    pub fn is_empty(&self) -> bool {
+        self.mid.is_empty()
+    }
+
+    /// The PD target of normalised action value `a` for actuated joint `j`.
+    pub fn target(&self, j: usize, a: f32) -> f64 {
+        let a = f64::from(a.clamp(-1.0, 1.0));
+        self.mid[j] + if a >= 0.0 { a * self.up[j] } else { a * self.down[j] }
+    }
+
+    /// The normalised action whose PD target is `angle` for actuated joint `j` (clamped).
+    pub fn action_for(&self, j: usize, angle: f64) -> f32 {
+        let d = angle - self.mid[j];
+        let a = if d >= 0.0 { d / self.up[j].max(1e-9) } else { d / self.down[j].max(1e-9) };
+        a.clamp(-1.0, 1.0) as f32
+    }
+
+    /// PD targets for a whole action vector.
+    pub fn targets(&self, action: &[f32], out: &mut [f64]) {
+        for (j, (t, &a)) in out.iter_mut().zip(action).enumerate() {
+            *t = self.target(j, a);
+        }
+    }
 }
 
 impl<T: Task> HumanoidEnv<T> {
@@ -71,21 +121,15 @@ impl<T: Task> HumanoidEnv<T> {
 
     /// Like [`HumanoidEnv::new`] with a layout shared by many environments.
     pub fn with_layout(model: &Arc<WorldModel>, layout: Arc<ObservationLayout>, task: T, max_steps: u32) -> Self {
-        let joints = &model.index.joints;
-        let q0 = model.mj_model().qpos0();
-        let ctrl_mid: Vec<f64> = joints.iter().map(|j| q0[j.qpos].clamp(j.ctrl_range[0], j.ctrl_range[1])).collect();
-        let ctrl_up = joints.iter().zip(&ctrl_mid).map(|(j, m)| j.ctrl_range[1] - m).collect();
-        let ctrl_down = joints.iter().zip(&ctrl_mid).map(|(j, m)| m - j.ctrl_range[0]).collect();
-        let n = joints.len();
+        let map = ActionMap::new(model);
+        let n = map.len();
         HumanoidEnv {
             world: model.new_world(),
             layout,
             task,
             max_steps,
             steps: 0,
-            ctrl_mid,
-            ctrl_up,
-            ctrl_down,
+            map,
             targets: vec![0.0; n],
             lo: vec![-1.0; n],
             hi: vec![1.0; n],
@@ -124,15 +168,12 @@ impl<T: Task> HumanoidEnv<T> {
 
     /// The PD target of normalised action value `a` for actuated joint `j`.
     pub fn target(&self, j: usize, a: f32) -> f64 {
-        let a = f64::from(a);
-        self.ctrl_mid[j] + if a >= 0.0 { a * self.ctrl_up[j] } else { a * self.ctrl_down[j] }
+        self.map.target(j, a)
     }
 
     /// The normalised action whose PD target is `angle` for actuated joint `j` (clamped).
     pub fn action_for(&self, j: usize, angle: f64) -> f32 {
-        let d = angle - self.ctrl_mid[j];
-        let a = if d >= 0.0 { d / self.ctrl_up[j].max(1e-9) } else { d / self.ctrl_down[j].max(1e-9) };
-        a.clamp(-1.0, 1.0) as f32
+        self.map.action_for(j, angle)
     }
 
     fn observe(&self, obs: &mut [f32]) {
@@ -166,11 +207,7 @@ impl<T: Task> Env for HumanoidEnv<T> {
     }
 
     fn step(&mut self, action: &[f32], obs: &mut [f32]) -> StepOutcome {
-        let mut targets = std::mem::take(&mut self.targets);
-        for (j, (t, &a)) in targets.iter_mut().zip(action).enumerate() {
-            *t = self.target(j, a);
-        }
-        self.targets = targets;
+        self.map.targets(action, &mut self.targets);
         // The wrapper clips actions to [-1, 1] and the policy's outputs are finite, so the
         // targets are always valid; a NaN from a diverged policy ends the episode instead.
         let stepped = self.world.step(&self.targets).is_ok();

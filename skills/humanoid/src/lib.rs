@@ -10,5 +10,5 @@
 mod env;
 mod locomotion;
 
-pub use env::{HumanoidEnv, Task, TaskStep};
+pub use env::{ActionMap, HumanoidEnv, Task, TaskStep};
 pub use locomotion::Locomotion;

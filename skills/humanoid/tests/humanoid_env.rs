@@ -26,7 +26,11 @@ fn standing_is_healthy_and_falling_terminates() {
     let mut rng = EnvRng::seed_from_u64(3);
     let mut obs = vec![0.0; e.obs_dim()];
     e.reset(&mut rng, &mut obs);
-    assert_eq!(obs.len(), 58, "25 angles + 25 velocities + height + 3 velocity + pitch/roll + 2 feet");
+    assert_eq!(
+        obs.len(),
+        61,
+        "25 angles + 25 velocities + height + 3 velocity + pitch/roll + 3 angular velocity + 2 feet"
+    );
     assert!(obs.iter().all(|v| v.is_finite()));
 
     // Action 0 is the standing pose; `action_for` inverts the mapping.

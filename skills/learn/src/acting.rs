@@ -189,3 +189,77 @@ impl ActingPolicy {
         })
     }
 }
+
+/// A trained hybrid head (a meta-controller) with its frozen observation normaliser.
+#[derive(Clone, Debug)]
+pub struct ActingHybrid {
+    /// The head.
+    pub head: crate::policy::HybridInference,
+    /// Observation statistics.
+    pub obs_rms: RunningMeanStd,
+    /// Whether observations are normalised before the networks.
+    pub normalize_obs: bool,
+    scratch: Vec<f32>,
+}
+
+impl ActingHybrid {
+    /// The current head and normaliser of a PPO learner over hybrid actions.
+    pub fn from_ppo<E: Env>(ppo: &Ppo<E>) -> Option<Self> {
+        Some(ActingHybrid {
+            head: ppo.hybrid_inference()?,
+            obs_rms: ppo.obs_rms.clone(),
+            normalize_obs: ppo.cfg.normalize_obs,
+            scratch: Vec::new(),
+        })
+    }
+
+    /// The most likely allowed option and the mean continuous part for raw observations.
+    pub fn act(&mut self, obs: &[f32], masks: &[bool], actions: &mut [f32]) {
+        if self.normalize_obs {
+            self.scratch.resize(obs.len(), 0.0);
+            self.obs_rms.normalize(obs, &mut self.scratch, OBS_CLIP);
+            self.head.mode(&self.scratch, masks, actions);
+        } else {
+            self.head.mode(obs, masks, actions);
+        }
+    }
+
+    /// Writes the head to `path` (safetensors, via a `.partial` file and a rename).
+    pub fn save(&self, path: &Path) -> Result<(), CheckpointError> {
+        let as_policy = |mean: &MlpInference, log_std: Vec<f32>| ActingPolicy {
+            mean: mean.clone(),
+            log_std,
+            obs_rms: self.obs_rms.clone(),
+            normalize_obs: self.normalize_obs,
+            scratch: Vec::new(),
+        };
+        // Two acting-policy files side by side: the option logits and the continuous part.
+        let k = self.head.uses_continuous.len();
+        let uses: Vec<f32> = self.head.uses_continuous.iter().map(|&u| if u { 1.0 } else { 0.0 }).collect();
+        as_policy(&self.head.logits, uses).save(&with_suffix(path, "logits"))?;
+        debug_assert_eq!(k, self.head.logits.outputs());
+        as_policy(&self.head.mean, self.head.log_std.clone()).save(path)
+    }
+
+    /// Reads a head written by [`ActingHybrid::save`].
+    pub fn load(path: &Path) -> Result<Self, CheckpointError> {
+        let logits = ActingPolicy::load(&with_suffix(path, "logits"))?;
+        let mean = ActingPolicy::load(path)?;
+        if logits.obs_dim() != mean.obs_dim() {
+            return Err(corrupt(path, "the option and continuous networks read different observations"));
+        }
+        let uses = logits.log_std.iter().map(|&u| u > 0.5).collect();
+        Ok(ActingHybrid {
+            head: crate::policy::HybridInference::new(logits.mean, mean.mean, mean.log_std, uses),
+            obs_rms: mean.obs_rms,
+            normalize_obs: mean.normalize_obs,
+            scratch: Vec::new(),
+        })
+    }
+}
+
+/// `dir/name.safetensors` → `dir/name.SUFFIX.safetensors`.
+fn with_suffix(path: &Path, suffix: &str) -> PathBuf {
+    let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    path.with_file_name(format!("{stem}.{suffix}.safetensors"))
+}

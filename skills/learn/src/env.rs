@@ -41,6 +41,16 @@ pub trait Env: Send {
     fn term_names(&self) -> &[&'static str] {
         &[]
     }
+    /// For a hybrid action (a meta-controller's): per discrete option, whether it reads the
+    /// continuous part. Then `action[0]` is the option index and `action[1..]` the continuous
+    /// part. `None` (the default): every action value is continuous.
+    fn options(&self) -> Option<Vec<bool>> {
+        None
+    }
+    /// Which options may be chosen now (hybrid actions only; all by default).
+    fn option_mask(&self, mask: &mut [bool]) {
+        mask.fill(true);
+    }
     /// Start a new episode and write its first observation into `obs`.
     fn reset(&mut self, rng: &mut EnvRng, obs: &mut [f32]);
     /// Apply `action` (already within bounds), advance one control step, write the new
@@ -131,6 +141,9 @@ pub struct VecEnv<E: Env> {
     pub truncated: Vec<bool>,
     /// Episodes finished since the caller last cleared this list.
     pub finished: Vec<EpisodeStats>,
+    /// Options allowed now, `[N × K]` (hybrid actions only; empty otherwise).
+    pub masks: Vec<bool>,
+    options: usize,
 }
 
 impl<E: Env> VecEnv<E> {
@@ -166,7 +179,11 @@ impl<E: Env> VecEnv<E> {
             terminated: vec![false; n],
             truncated: vec![false; n],
             finished: Vec::new(),
+            masks: Vec::new(),
+            options: 0,
         };
+        v.options = v.slots.first().and_then(|s| s.env.options()).map_or(0, |o| o.len());
+        v.masks = vec![true; n * v.options];
         v.reset();
         v
     }
@@ -203,6 +220,22 @@ impl<E: Env> VecEnv<E> {
             slot.env.reset(&mut slot.rng, obs);
             slot.running = EpisodeStats::default();
         }
+        self.update_masks();
+    }
+
+    /// Number of discrete options of a hybrid action (0 for continuous actions).
+    pub fn options(&self) -> usize {
+        self.options
+    }
+
+    fn update_masks(&mut self) {
+        let k = self.options;
+        if k == 0 {
+            return;
+        }
+        for (slot, m) in self.slots.iter().zip(self.masks.chunks_exact_mut(k)) {
+            slot.env.option_mask(m);
+        }
     }
 
     /// Step every env with its row of `actions: [N × act_dim]` (clipped to the bounds); fills
@@ -227,6 +260,7 @@ impl<E: Env> VecEnv<E> {
                 self.finished.push(std::mem::take(&mut slot.running));
             }
         }
+        self.update_masks();
     }
 
     /// Everything needed to continue stepping exactly where this left off.
@@ -266,6 +300,7 @@ impl<E: Env> VecEnv<E> {
             };
         }
         self.obs.copy_from_slice(&state.obs);
+        self.update_masks();
         Ok(())
     }
 }

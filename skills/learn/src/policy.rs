@@ -217,6 +217,110 @@ pub struct HybridPolicy {
     pub uses_continuous: Vec<bool>,
 }
 
+/// Logit bias of an option the mask forbids (its probability underflows to exactly 0).
+pub const MASKED_LOGIT: f32 = -1e9;
+
+/// Plain-`f32` hybrid head for batched sampling during rollouts and for acting.
+#[derive(Clone, Debug)]
+pub struct HybridInference {
+    /// Observation → option logits.
+    pub logits: MlpInference,
+    /// Observation → continuous means.
+    pub mean: MlpInference,
+    /// Log standard deviation of the continuous part.
+    pub log_std: Vec<f32>,
+    /// Per option: whether it reads the continuous part.
+    pub uses_continuous: Vec<bool>,
+    scratch_logits: Vec<f32>,
+    scratch_means: Vec<f32>,
+}
+
+impl HybridInference {
+    /// Builds from its parts (e.g. loaded from a file).
+    pub fn new(logits: MlpInference, mean: MlpInference, log_std: Vec<f32>, uses_continuous: Vec<bool>) -> Self {
+        HybridInference {
+            logits,
+            mean,
+            log_std,
+            uses_continuous,
+            scratch_logits: Vec::new(),
+            scratch_means: Vec::new(),
+        }
+    }
+
+    /// Action width: the option index, then the continuous part.
+    pub fn act_dim(&self) -> usize {
+        1 + self.log_std.len()
+    }
+
+    fn forward(&mut self, obs: &[f32], masks: &[bool]) -> usize {
+        let (k, c) = (self.uses_continuous.len(), self.log_std.len());
+        let batch = obs.len() / self.logits.inputs().max(1);
+        self.scratch_logits.resize(batch * k, 0.0);
+        self.scratch_means.resize(batch * c, 0.0);
+        self.logits.forward(obs, &mut self.scratch_logits);
+        self.mean.forward(obs, &mut self.scratch_means);
+        if !masks.is_empty() {
+            for (l, &m) in self.scratch_logits.iter_mut().zip(masks) {
+                if !m {
+                    *l += MASKED_LOGIT;
+                }
+            }
+        }
+        batch
+    }
+
+    /// Samples `[B × (1 + C)]` actions (option index as a float, then the continuous part) and
+    /// their log-probabilities for `obs: [B × obs_dim]`, among the options `masks` allows.
+    pub fn sample(
+        &mut self,
+        obs: &[f32],
+        masks: &[bool],
+        rng: &mut impl Rng,
+        actions: &mut [f32],
+        log_probs: &mut [f32],
+    ) {
+        let batch = self.forward(obs, masks);
+        let (k, c) = (self.uses_continuous.len(), self.log_std.len());
+        for i in 0..batch {
+            let l = &self.scratch_logits[i * k..(i + 1) * k];
+            let lse = log_sum_exp(l);
+            let u: f32 = rng.random();
+            let mut acc = 0.0;
+            let option = (0..k)
+                .find(|&j| {
+                    acc += (l[j] - lse).exp();
+                    u < acc
+                })
+                .unwrap_or_else(|| (0..k).rev().find(|&j| l[j] > MASKED_LOGIT / 2.0).unwrap_or(k - 1));
+            let row = &mut actions[i * (1 + c)..(i + 1) * (1 + c)];
+            row[0] = option as f32;
+            let mean = &self.scratch_means[i * c..(i + 1) * c];
+            for ((x, m), ls) in row[1..].iter_mut().zip(mean).zip(&self.log_std) {
+                *x = m + ls.exp() * standard_normal(rng);
+            }
+            let mut lp = l[option] - lse;
+            if self.uses_continuous[option] {
+                lp += gaussian_log_prob(&row[1..], mean, &self.log_std);
+            }
+            log_probs[i] = lp;
+        }
+    }
+
+    /// The most likely allowed option and the mean continuous part (deterministic acting).
+    pub fn mode(&mut self, obs: &[f32], masks: &[bool], actions: &mut [f32]) {
+        let batch = self.forward(obs, masks);
+        let (k, c) = (self.uses_continuous.len(), self.log_std.len());
+        for i in 0..batch {
+            let l = &self.scratch_logits[i * k..(i + 1) * k];
+            let option = (0..k).fold(0, |best, j| if l[j] > l[best] { j } else { best });
+            let row = &mut actions[i * (1 + c)..(i + 1) * (1 + c)];
+            row[0] = option as f32;
+            row[1..].copy_from_slice(&self.scratch_means[i * c..(i + 1) * c]);
+        }
+    }
+}
+
 /// One sampled hybrid action.
 #[derive(Clone, Debug, PartialEq)]
 pub struct HybridAction {
@@ -248,10 +352,23 @@ impl HybridPolicy {
     }
 
     /// Taped `(log π, entropy)` per row: the continuous log-density and entropy count only on
-    /// rows whose chosen option uses the continuous part.
-    pub fn log_prob_entropy(&self, obs: Matrix<Taped>, options: &[usize], continuous: &Matrix) -> LogProbEntropy {
+    /// rows whose chosen option uses the continuous part. `masks` (`[B × K]`, or empty for all
+    /// allowed) removes options that could not be chosen from the softmax.
+    pub fn log_prob_entropy(
+        &self,
+        obs: Matrix<Taped>,
+        options: &[usize],
+        continuous: &Matrix,
+        masks: &[bool],
+    ) -> LogProbEntropy {
         let dev = obs.device().clone();
         let (batch, k) = (options.len(), self.uses_continuous.len());
+        let bias: Vec<f32> = if masks.is_empty() {
+            vec![0.0; batch * k]
+        } else {
+            masks.iter().map(|&m| if m { 0.0 } else { MASKED_LOGIT }).collect()
+        };
+        let bias = dev.tensor_from_vec(bias, (batch, k));
         let mut one_hot = vec![0.0; batch * k];
         let mut mask = vec![0.0; batch];
         for (i, &o) in options.iter().enumerate() {
@@ -262,7 +379,7 @@ impl HybridPolicy {
         let mask = dev.tensor_from_vec(mask, (batch,));
 
         let obs_mean = obs.with_empty_tape();
-        let log_p = self.logits.forward(obs).log_softmax::<Axis<1>>();
+        let log_p = (self.logits.forward(obs) + bias).log_softmax::<Axis<1>>();
         let p = log_p.with_empty_tape().exp();
         let cat_entropy = (p * log_p.with_empty_tape()).sum::<(usize,), Axis<1>>().negate();
         let cat_log_prob = (log_p * one_hot).sum::<(usize,), Axis<1>>();
@@ -272,6 +389,16 @@ impl HybridPolicy {
         let log_prob = cat_log_prob + cont_log_prob * mask.clone();
         let entropy = cat_entropy + cont_entropy * mask;
         (log_prob, entropy)
+    }
+
+    /// A tape-free plain-`f32` copy for rollouts and acting.
+    pub fn inference(&self) -> HybridInference {
+        HybridInference::new(
+            self.logits.inference(),
+            self.mean.inference(),
+            self.log_std.as_vec(),
+            self.uses_continuous.clone(),
+        )
     }
 
     /// Sample one action per row of `obs: [B × obs_dim]` without a tape.
@@ -406,7 +533,7 @@ mod tests {
         head.mean.inference().forward(&obs, &mut means);
         let obs_t = dev.tensor_from_vec(obs, (2, 2));
         let cont_t = dev.tensor_from_vec(cont.clone(), (2, 2));
-        let (lp, ent) = head.log_prob_entropy(obs_t.leaky_trace(), &options, &cont_t);
+        let (lp, ent) = head.log_prob_entropy(obs_t.leaky_trace(), &options, &cont_t, &[]);
         let (lp, ent) = (lp.as_vec(), ent.as_vec());
         // Row 0 chose option 0 (uses the continuous part): both terms count.
         let g0 = gaussian_log_prob(&cont[0..2], &means[0..2], &[0.2, 0.2]);

@@ -14,7 +14,7 @@ use crate::env::{Env, EpisodeStats, VecEnv};
 use crate::nn::{ParamMut, Parameters, prefixed};
 use crate::normalize::{RewardScaler, RunningMeanStd};
 use crate::optim::{Adam, clip_grad_norm};
-use crate::policy::{GaussianInference, GaussianPolicy, PolicyConfig, ValueNet};
+use crate::policy::{GaussianInference, GaussianPolicy, HybridInference, HybridPolicy, PolicyConfig, ValueNet};
 
 /// Observations are clipped to ±this many standard deviations after normalisation.
 pub const OBS_CLIP: f32 = 10.0;
@@ -142,15 +142,21 @@ pub fn gae(
 /// The policy and value networks, listed together so one Adam and one gradient norm cover both.
 #[derive(Clone, Debug)]
 pub struct ActorCritic {
-    /// `π(a|s)`.
+    /// `π(a|s)` for continuous actions.
     pub policy: GaussianPolicy,
+    /// `π(option, continuous | s)` when the environment's actions are hybrid
+    /// ([`Env::options`]); it then replaces `policy`, which is neither trained nor saved.
+    pub hybrid: Option<HybridPolicy>,
     /// `V(s)`.
     pub value: ValueNet,
 }
 
 impl Parameters for ActorCritic {
     fn params_mut(&mut self) -> Vec<(String, ParamMut<'_>)> {
-        let mut out = prefixed("policy", self.policy.params_mut());
+        let mut out = match &mut self.hybrid {
+            Some(h) => prefixed("hybrid", h.params_mut()),
+            None => prefixed("policy", self.policy.params_mut()),
+        };
         out.extend(prefixed("value", self.value.params_mut()));
         out
     }
@@ -209,6 +215,8 @@ struct Rollout {
     truncated: Vec<bool>,
     final_values: Vec<f32>,
     last_values: Vec<f32>,
+    /// Allowed options per sample, `[T·N × K]` (hybrid actions only).
+    masks: Vec<bool>,
 }
 
 /// A PPO learner owning its environments, networks, optimiser, normalisers and random streams.
@@ -233,6 +241,8 @@ pub struct Ppo<E: Env> {
     pub global_step: u64,
     /// Normalised current observations `[N × obs_dim]`, the policy's next input.
     pub next_obs: Vec<f32>,
+    /// The episodes that finished during the last iteration (curricula read their outcomes).
+    pub last_episodes: Vec<EpisodeStats>,
     buf: Rollout,
     dev: Cpu,
 }
@@ -242,12 +252,12 @@ impl<E: Env> Ppo<E> {
     pub fn new(cfg: PpoConfig, envs: Vec<E>) -> Self {
         let dev = Cpu::default();
         let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
+        let options = envs.first().and_then(Env::options);
         let envs = VecEnv::new(envs, cfg.seed, cfg.parallel_envs);
         let (n, od, ad) = (envs.len(), envs.obs_dim(), envs.act_dim());
-        let mut agent = ActorCritic {
-            policy: GaussianPolicy::new(&dev, od, ad, &cfg.policy, &mut rng),
-            value: ValueNet::new(&dev, od, &cfg.policy, &mut rng),
-        };
+        let policy = GaussianPolicy::new(&dev, od, ad, &cfg.policy, &mut rng);
+        let hybrid = options.map(|uses| HybridPolicy::new(&dev, od, uses, ad.saturating_sub(1), &cfg.policy, &mut rng));
+        let mut agent = ActorCritic { policy, hybrid, value: ValueNet::new(&dev, od, &cfg.policy, &mut rng) };
         let optimizer = Adam::new(&mut agent, cfg.learning_rate);
         let tn = cfg.num_steps * n;
         let buf = Rollout {
@@ -260,6 +270,7 @@ impl<E: Env> Ppo<E> {
             truncated: vec![false; tn],
             final_values: vec![0.0; tn],
             last_values: vec![0.0; n],
+            masks: vec![true; tn * envs.options()],
         };
         let mut ppo = Ppo {
             obs_rms: RunningMeanStd::new(od),
@@ -274,6 +285,7 @@ impl<E: Env> Ppo<E> {
             global_step: 0,
             buf,
             dev,
+            last_episodes: Vec::new(),
         };
         ppo.observe();
         ppo
@@ -320,13 +332,16 @@ impl<E: Env> Ppo<E> {
         m.samples_per_sec = self.buf.rewards.len() as f32 / secs;
         m.env_time_fraction = env_secs / secs;
         self.episode_metrics(&episodes, &mut m);
+        self.last_episodes = episodes;
         m
     }
 
     /// The rollout: `T` ticks of all `N` envs. Returns seconds spent inside env stepping.
     fn collect(&mut self) -> f32 {
         let (n, od, ad) = (self.envs.len(), self.envs.obs_dim(), self.envs.act_dim());
+        let k = self.envs.options();
         let mut policy = self.agent.policy.inference();
+        let mut hybrid = self.agent.hybrid.as_ref().map(HybridPolicy::inference);
         let mut value = self.agent.value.net.inference();
         let mut final_obs = vec![0.0; od];
         let mut env_secs = 0.0;
@@ -335,7 +350,13 @@ impl<E: Env> Ppo<E> {
             let obs = &mut self.buf.obs[t * n * od..(t + 1) * n * od];
             obs.copy_from_slice(&self.next_obs);
             let actions = &mut self.buf.actions[t * n * ad..(t + 1) * n * ad];
-            policy.sample(obs, &mut self.rng, actions, &mut self.buf.log_probs[rows.clone()]);
+            match &mut hybrid {
+                Some(h) => {
+                    self.buf.masks[t * n * k..(t + 1) * n * k].copy_from_slice(&self.envs.masks);
+                    h.sample(obs, &self.envs.masks, &mut self.rng, actions, &mut self.buf.log_probs[rows.clone()]);
+                }
+                None => policy.sample(obs, &mut self.rng, actions, &mut self.buf.log_probs[rows.clone()]),
+            }
             value.forward(obs, &mut self.buf.values[rows.clone()]);
 
             let tick = Instant::now();
@@ -480,10 +501,16 @@ impl<E: Env> Ppo<E> {
         self.agent.policy.inference()
     }
 
+    /// A tape-free copy of the hybrid head (environments with hybrid actions only).
+    pub fn hybrid_inference(&self) -> Option<HybridInference> {
+        self.agent.hybrid.as_ref().map(HybridPolicy::inference)
+    }
+
     /// Mean undiscounted return of the deterministic (mean-action) policy over the first
     /// `episodes` episodes that end in `envs`; observation statistics stay frozen.
     pub fn evaluate(&self, envs: &mut VecEnv<E>, episodes: usize) -> f32 {
         let mut policy = self.agent.policy.inference();
+        let mut hybrid = self.hybrid_inference();
         let mut obs = vec![0.0; envs.obs.len()];
         let mut actions = vec![0.0; envs.len() * envs.act_dim()];
         envs.finished.clear();
@@ -493,7 +520,10 @@ impl<E: Env> Ppo<E> {
             } else {
                 obs.copy_from_slice(&envs.obs);
             }
-            policy.mean(&obs, &mut actions);
+            match &mut hybrid {
+                Some(h) => h.mode(&obs, &envs.masks, &mut actions),
+                None => policy.mean(&obs, &mut actions),
+            }
             envs.step(&actions);
         }
         let done = &envs.finished[..episodes];
@@ -534,7 +564,18 @@ fn shard_loss(
     let adv = dev.tensor_from_vec(s.adv.to_vec(), (m,));
 
     // Policy: ratio r = π(a|s) / π_old(a|s); clipped surrogate max(−A·r, −A·clip(r, 1±ε)).
-    let (new_log_prob, entropy) = agent.policy.log_prob_entropy(obs.leaky_trace(), &actions);
+    let (new_log_prob, entropy) = match &agent.hybrid {
+        Some(h) => {
+            let raw = gather(&b.actions, s.ad);
+            let options: Vec<usize> = raw.chunks_exact(s.ad).map(|a| a[0] as usize).collect();
+            let cont: Vec<f32> = raw.chunks_exact(s.ad).flat_map(|a| a[1..].iter().copied()).collect();
+            let cont = dev.tensor_from_vec(cont, (m, s.ad - 1));
+            let k = h.uses_continuous.len();
+            let masks: Vec<bool> = s.rows.iter().flat_map(|&r| &b.masks[r * k..(r + 1) * k]).copied().collect();
+            h.log_prob_entropy(obs.leaky_trace(), &options, &cont, &masks)
+        }
+        None => agent.policy.log_prob_entropy(obs.leaky_trace(), &actions),
+    };
     let log_ratio = new_log_prob - old_log_prob;
     let (kl, clip_frac) = ratio_stats(&log_ratio.as_vec(), cfg.clip_coef);
     let ratio = log_ratio.exp();

@@ -1,0 +1,159 @@
+//! Where episodes start.
+//!
+//! [`ZoneCurriculum`]: training starts in the scenario's easiest spawn zone and moves to the next
+//! when the success rate over the last `window` episodes reaches `advance_at` (the sitting
+//! paper's front → sides → behind schedule). Every switch is recorded with the episode count at
+//! which it happened, so a run's schedule can be read back. Reference-state initialisation and
+//! end-pose pools live with the skills (`repertoire_skill::imitation`, `repertoire_skill::pool`).
+
+use std::collections::VecDeque;
+
+use repertoire_scenes::scenario::Curriculum;
+use serde::{Deserialize, Serialize};
+
+/// One zone switch.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Advance {
+    /// Episodes finished when it happened.
+    pub episode: u64,
+    /// The zone left.
+    pub from: String,
+    /// The zone entered.
+    pub to: String,
+    /// The windowed success rate that triggered it.
+    pub success_rate: f64,
+}
+
+/// A spawn-zone curriculum over a scenario's zones.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ZoneCurriculum {
+    zones: Vec<String>,
+    advance_at: f64,
+    window: usize,
+    /// Index of the current (hardest unlocked) zone.
+    current: usize,
+    /// Outcomes of the last `window` episodes in the current zone.
+    recent: VecDeque<bool>,
+    episodes: u64,
+    /// Every switch so far.
+    pub history: Vec<Advance>,
+    /// When false, every zone is open from the start (the "no curriculum" ablation).
+    pub enabled: bool,
+}
+
+impl ZoneCurriculum {
+    /// A curriculum over `spec`'s zones, starting in the first; `enabled = false` opens every
+    /// zone at once.
+    pub fn new(spec: &Curriculum, enabled: bool) -> Self {
+        ZoneCurriculum {
+            zones: spec.zones.clone(),
+            advance_at: spec.advance_at,
+            window: spec.window.max(1),
+            current: if enabled { 0 } else { spec.zones.len().saturating_sub(1) },
+            recent: VecDeque::with_capacity(spec.window.max(1)),
+            episodes: 0,
+            history: Vec::new(),
+            enabled,
+        }
+    }
+
+    /// The zones episodes may start in now: the current zone when enabled, else all of them.
+    pub fn open_zones(&self) -> &[String] {
+        if self.enabled { &self.zones[self.current..=self.current] } else { &self.zones }
+    }
+
+    /// The current zone's name.
+    pub fn current(&self) -> &str {
+        &self.zones[self.current]
+    }
+
+    /// Whether the last zone has been reached.
+    pub fn finished(&self) -> bool {
+        self.current + 1 >= self.zones.len()
+    }
+
+    /// The success rate over the current window (None until the window is full).
+    pub fn success_rate(&self) -> Option<f64> {
+        (self.recent.len() == self.window)
+            .then(|| self.recent.iter().filter(|&&s| s).count() as f64 / self.window as f64)
+    }
+
+    /// Records one finished episode; returns the switch when this episode completes a full
+    /// window whose success rate is at least `advance_at` (the window then starts afresh in
+    /// the next zone).
+    pub fn record(&mut self, success: bool) -> Option<Advance> {
+        self.episodes += 1;
+        if !self.enabled || self.finished() {
+            return None;
+        }
+        if self.recent.len() == self.window {
+            self.recent.pop_front();
+        }
+        self.recent.push_back(success);
+        let rate = self.success_rate()?;
+        if rate < self.advance_at {
+            return None;
+        }
+        let advance = Advance {
+            episode: self.episodes,
+            from: self.zones[self.current].clone(),
+            to: self.zones[self.current + 1].clone(),
+            success_rate: rate,
+        };
+        self.current += 1;
+        self.recent.clear();
+        self.history.push(advance.clone());
+        Some(advance)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn spec() -> Curriculum {
+        Curriculum { zones: vec!["front".into(), "sides".into(), "behind".into()], advance_at: 0.8, window: 10 }
+    }
+
+    #[test]
+    fn advances_exactly_when_the_window_reaches_the_threshold() {
+        let mut c = ZoneCurriculum::new(&spec(), true);
+        assert_eq!(c.open_zones(), ["front"]);
+        // 7 successes in a window of 10: 0.7 < 0.8, no switch.
+        for k in 0..10 {
+            assert_eq!(c.record(k < 7), None, "episode {k}");
+        }
+        assert_eq!(c.success_rate(), Some(0.7));
+        // The window slides: each new success replaces an old outcome. After the 11th episode
+        // (a success replacing a success) still 0.7; then a success replaces the first failure.
+        assert_eq!(c.record(true), None); // window: episodes 2..11 → 7 successes (ep 1 success dropped)
+        assert_eq!(c.success_rate(), Some(0.7));
+        let mut switched = None;
+        for _ in 0..10 {
+            if let Some(a) = c.record(true) {
+                switched = Some(a);
+                break;
+            }
+            assert!(c.success_rate().unwrap() < 0.8, "a rate ≥ 0.8 must switch at once");
+        }
+        let a = switched.expect("switches once the rate reaches 0.8");
+        assert_eq!((a.from.as_str(), a.to.as_str()), ("front", "sides"));
+        assert!((a.success_rate - 0.8).abs() < 1e-12, "switches at exactly the threshold, not later");
+        assert_eq!(c.current(), "sides");
+        assert_eq!(c.success_rate(), None, "a new zone starts a new window");
+    }
+
+    #[test]
+    fn the_last_zone_stays_and_disabled_opens_all() {
+        let mut c = ZoneCurriculum::new(&spec(), true);
+        for _ in 0..25 {
+            c.record(true);
+        }
+        assert_eq!(c.current(), "behind");
+        assert_eq!(c.history.len(), 2);
+        assert!(c.finished());
+        assert_eq!(c.record(true), None);
+        let off = ZoneCurriculum::new(&spec(), false);
+        assert_eq!(off.open_zones(), ["front", "sides", "behind"]);
+    }
+}

@@ -1,0 +1,169 @@
+//! Training the meta-controller: PPO with the hybrid head over [`MetaEnv`]s, the zone
+//! curriculum advancing between iterations, a run directory, and the trained head saved with a
+//! manifest of what it was trained on.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Instant;
+
+use repertoire_curriculum::{Advance, ZoneCurriculum};
+use repertoire_learn::acting::ActingHybrid;
+use repertoire_learn::checkpoint;
+use repertoire_learn::ppo::{IterationMetrics, Ppo, PpoConfig};
+use repertoire_learn::run_dir::{RunDir, git_hash};
+use serde::{Deserialize, Serialize};
+
+use crate::env::{MetaEnv, MetaSetup};
+use crate::error::{MetaError, Result};
+
+/// What is recorded beside a trained meta-controller (`meta.ron`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MetaManifest {
+    /// The scenario it was trained on.
+    pub scenario: String,
+    /// Skills in option order.
+    pub skills: Vec<String>,
+    /// Body content hash.
+    pub body_hash: String,
+    /// Observation width.
+    pub obs_dim: usize,
+    /// PPO settings.
+    pub ppo: PpoConfig,
+    /// Iterations and environment steps (decisions).
+    pub iterations: usize,
+    /// Decisions taken.
+    pub samples: u64,
+    /// Wall-clock seconds.
+    pub seconds: f64,
+    /// Whether the zone curriculum was on, and its switches.
+    pub curriculum: bool,
+    /// Zone switches.
+    pub advances: Vec<Advance>,
+    /// The command that trained it.
+    pub command: String,
+    /// Git commit.
+    pub git_hash: Option<String>,
+}
+
+/// Options of a meta-controller training run.
+#[derive(Debug, Clone)]
+pub struct MetaTrainOptions {
+    /// Where the trained head and manifest go.
+    pub out: PathBuf,
+    /// The run directory.
+    pub run_dir: PathBuf,
+    /// PPO settings (their `num_envs`, `num_iterations` are used).
+    pub ppo: PpoConfig,
+    /// Use the scenario's zone curriculum (else all zones from the start).
+    pub curriculum: bool,
+    /// The command line.
+    pub command: String,
+}
+
+/// PPO defaults for the meta-controller: decisions at 2 Hz are few and costly (30 control
+/// ticks with a skill each), so rollouts are short and the discount is per decision.
+pub fn default_ppo() -> PpoConfig {
+    PpoConfig {
+        num_envs: 16,
+        num_steps: 32,
+        num_iterations: 200,
+        gamma: 0.95,
+        num_minibatches: 4,
+        update_epochs: 8,
+        learning_rate: 3e-4,
+        ..PpoConfig::default()
+    }
+}
+
+/// Trains the meta-controller of `setup`; returns the manifest and each iteration's metrics.
+pub fn train(setup: Arc<MetaSetup>, opts: &MetaTrainOptions) -> Result<(MetaManifest, Vec<IterationMetrics>)> {
+    let sc = &setup.model.scenario.scenario;
+    let mut curriculum = match (&sc.curriculum, opts.curriculum) {
+        (Some(c), true) => Some(ZoneCurriculum::new(c, true)),
+        _ => None,
+    };
+    if let Some(c) = &curriculum {
+        *setup.zones.write().expect("never poisoned") = c.open_zones().to_vec();
+    }
+    let envs = (0..opts.ppo.num_envs).map(|_| MetaEnv::new(Arc::clone(&setup))).collect();
+    let mut ppo = Ppo::new(opts.ppo.clone(), envs);
+    let io = |e| MetaError::Invalid(format!("{}: {e}", opts.run_dir.display()));
+    let mut run = RunDir::create(&opts.run_dir, &ppo.cfg).map_err(io)?;
+    let started = Instant::now();
+    let mut history = Vec::new();
+    while ppo.iteration < ppo.cfg.num_iterations {
+        let m = ppo.iterate();
+        run.log(&m).map_err(io)?;
+        if let Some(c) = &mut curriculum {
+            for e in &ppo.last_episodes {
+                if let Some(a) = c.record(e.terms[0] > 0.5) {
+                    tracing::info!(from = %a.from, to = %a.to, episode = a.episode, rate = a.success_rate, "curriculum advances");
+                    *setup.zones.write().expect("never poisoned") = c.open_zones().to_vec();
+                }
+            }
+        }
+        tracing::info!(
+            iteration = m.iteration,
+            mean_return = m.mean_return,
+            success = m.terms.first().map_or(f32::NAN, |t| t.1),
+            zone = curriculum.as_ref().map_or("all", |c| c.current()),
+            "meta iteration"
+        );
+        history.push(m);
+    }
+    let last = run.checkpoint_stem(ppo.iteration);
+    checkpoint::save(&mut ppo, &last).map_err(|e| MetaError::Invalid(e.to_string()))?;
+    std::fs::create_dir_all(&opts.out).map_err(|e| MetaError::Invalid(format!("{}: {e}", opts.out.display())))?;
+    let head = ActingHybrid::from_ppo(&ppo).expect("the meta environment has hybrid actions");
+    head.save(&opts.out.join("meta.safetensors")).map_err(|e| MetaError::Invalid(e.to_string()))?;
+    let manifest = MetaManifest {
+        scenario: setup.model.scenario.path.display().to_string(),
+        skills: setup.skills.iter().map(|s| s.name.clone()).collect(),
+        body_hash: setup.model.body.content_hash(),
+        obs_dim: setup.obs_dim(),
+        ppo: ppo.cfg.clone(),
+        iterations: ppo.iteration,
+        samples: ppo.global_step,
+        seconds: started.elapsed().as_secs_f64(),
+        curriculum: curriculum.is_some(),
+        advances: curriculum.map(|c| c.history).unwrap_or_default(),
+        command: opts.command.clone(),
+        git_hash: git_hash(),
+    };
+    let text = ron::ser::to_string_pretty(&manifest, ron::ser::PrettyConfig::new().depth_limit(2))
+        .map_err(|e| MetaError::Invalid(e.to_string()))?;
+    write_atomic(&opts.out.join("meta.ron"), text.as_bytes())?;
+    Ok((manifest, history))
+}
+
+/// Loads a trained meta-controller and checks it fits `setup`.
+pub fn load(dir: &Path, setup: &MetaSetup) -> Result<(MetaManifest, ActingHybrid)> {
+    let path = dir.join("meta.ron");
+    let text = std::fs::read_to_string(&path).map_err(|e| MetaError::Invalid(format!("{}: {e}", path.display())))?;
+    let manifest: MetaManifest = ron::from_str(&text)
+        .map_err(|e| MetaError::Invalid(format!("{}:{}: {}", path.display(), e.span.start.line, e.code)))?;
+    let names: Vec<String> = setup.skills.iter().map(|s| s.name.clone()).collect();
+    if manifest.skills != names
+        || manifest.body_hash != setup.model.body.content_hash()
+        || manifest.obs_dim != setup.obs_dim()
+    {
+        return Err(MetaError::Invalid(format!(
+            "{}: trained for skills {:?} on body {} with {} observations; this scenario has {:?}, body {}, {}",
+            path.display(),
+            manifest.skills,
+            manifest.body_hash,
+            manifest.obs_dim,
+            names,
+            setup.model.body.content_hash(),
+            setup.obs_dim()
+        )));
+    }
+    let head = ActingHybrid::load(&dir.join("meta.safetensors")).map_err(|e| MetaError::Invalid(e.to_string()))?;
+    Ok((manifest, head))
+}
+
+fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let partial = PathBuf::from(format!("{}.partial", path.display()));
+    std::fs::write(&partial, bytes).map_err(|e| MetaError::Invalid(format!("{}: {e}", partial.display())))?;
+    std::fs::rename(&partial, path).map_err(|e| MetaError::Invalid(format!("{}: {e}", path.display())))
+}

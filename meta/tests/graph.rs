@@ -1,0 +1,41 @@
+//! The skill graph of the default scenario and of fixed-order chains.
+
+use rand::{Rng, SeedableRng};
+use repertoire_meta::SkillGraph;
+use repertoire_scenes::ScenarioFile;
+
+#[test]
+fn the_default_graph_follows_the_scenario() {
+    let s = ScenarioFile::builtin_default();
+    let g = SkillGraph::of(&s.scenario);
+    assert_eq!(g.names(), ["walk", "turn_left", "turn_right", "sit"]);
+    let (walk, left, right, sit) = (0, 1, 2, 3);
+    assert!(g.is_allowed(None, walk) && !g.is_allowed(None, sit), "episodes do not start seated");
+    assert!(g.is_allowed(Some(walk), left) && g.is_allowed(Some(walk), right));
+    assert!(!g.is_allowed(Some(walk), sit), "sit only after a turn");
+    assert!(g.is_allowed(Some(left), sit) && g.is_allowed(Some(right), sit));
+    assert!(g.is_allowed(Some(sit), sit) && !g.is_allowed(Some(sit), walk), "sitting is final");
+}
+
+#[test]
+fn a_fixed_order_chain_never_allows_an_illegal_skill() {
+    let g = SkillGraph::chain(&["walk", "turn_left", "sit"]);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(4);
+    let mut mask = vec![false; g.len()];
+    // Random choices among the allowed options, many episodes: the visited order is always a
+    // prefix of walk → turn_left → sit, each held for some ticks.
+    for _ in 0..200 {
+        let mut current = None;
+        let mut visited: Vec<usize> = Vec::new();
+        for _ in 0..30 {
+            g.allowed(current, &mut mask);
+            let allowed: Vec<usize> = (0..g.len()).filter(|&k| mask[k]).collect();
+            let next = allowed[rng.random_range(0..allowed.len())];
+            if current != Some(next) {
+                visited.push(next);
+            }
+            current = Some(next);
+        }
+        assert_eq!(visited, (0..visited.len()).collect::<Vec<_>>(), "illegal order {visited:?}");
+    }
+}

@@ -1,0 +1,117 @@
+//! The meta environment over a (barely trained) skill library: decisions run the chosen skill
+//! for control_hz / meta_hz ticks, the graph's mask holds, training writes a controller that
+//! loads, and evaluation is reproducible for a seed.
+
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, OnceLock};
+
+use rand::SeedableRng;
+use repertoire_learn::env::{Env, EnvRng};
+use repertoire_learn::ppo::PpoConfig;
+use repertoire_meta::eval::evaluate;
+use repertoire_meta::train::{MetaTrainOptions, load, train};
+use repertoire_meta::{MetaEnv, MetaSetup, SkillGraph};
+use repertoire_scenes::{ScenarioFile, WorldModel};
+use repertoire_skill::train::TrainOptions;
+use repertoire_skill::{SkillSetup, SpecFile};
+
+/// A library with walk, both turns and sit, each trained for one tiny iteration.
+fn library() -> &'static Path {
+    static LIB: OnceLock<PathBuf> = OnceLock::new();
+    LIB.get_or_init(|| {
+        let lib = std::env::temp_dir().join(format!("repertoire-meta-lib-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&lib);
+        let specs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../skills/skill/specs");
+        for name in ["walk", "turn_left", "turn_right", "sit"] {
+            let spec = SpecFile::load(&specs.join(format!("{name}.ron"))).expect("spec");
+            let setup = SkillSetup::new(spec, &lib).expect("skill setup (needs the clip pack)");
+            let opts = TrainOptions {
+                library: lib.clone(),
+                run_dir: lib.join(format!("run-{name}")),
+                iterations: Some(1),
+                envs: Some(2),
+                seed: Some(1),
+                resume: None,
+                init_from_library: false,
+                checkpoint_every: 0,
+                serial: false,
+                progress: false,
+                command: "test".into(),
+            };
+            repertoire_skill::train::train(&setup, &opts).expect("train");
+        }
+        lib
+    })
+}
+
+fn setup(graph: Option<SkillGraph>) -> Arc<MetaSetup> {
+    let model = Arc::new(WorldModel::build(ScenarioFile::builtin_default()).expect("scene"));
+    let graph = graph.unwrap_or_else(|| SkillGraph::of(&model.scenario.scenario));
+    Arc::new(MetaSetup::new(model, library(), graph).expect("meta setup"))
+}
+
+#[test]
+fn a_decision_runs_the_chosen_skill_and_respects_the_graph() {
+    let s = setup(None);
+    assert_eq!(s.ticks, 30, "60 Hz skills under a 2 Hz meta-controller");
+    let mut env = MetaEnv::new(Arc::clone(&s));
+    let mut rng = EnvRng::seed_from_u64(1);
+    let mut obs = vec![0.0; env.obs_dim()];
+    env.reset(&mut rng, &mut obs);
+    let mut mask = vec![false; 4];
+    env.option_mask(&mut mask);
+    assert_eq!(mask, [true, true, true, false], "an episode cannot start by sitting");
+    let t0 = env.world().time();
+    let out = env.step(&[0.0, 1.0, 0.0], &mut obs); // walk
+    let dt = env.world().time() - t0;
+    if !out.terminated {
+        assert!((dt - 0.5).abs() < 1e-5, "one decision is 0.5 s of physics, got {dt}");
+    }
+    assert!(obs.iter().all(|v| v.is_finite()));
+    env.option_mask(&mut mask);
+    assert_eq!(mask, [true, true, true, false], "after walk: walk or a turn");
+    // Asking for sit straight after walk is refused: the current skill continues.
+    env.step(&[3.0, 0.0, 0.0], &mut obs);
+    assert_eq!(env.chosen, [0], "sit is not reachable from walk");
+}
+
+#[test]
+fn training_writes_a_controller_and_evaluation_is_reproducible() {
+    let s = setup(Some(SkillGraph::chain(&["walk", "turn_left", "sit"])));
+    let dir = std::env::temp_dir().join(format!("repertoire-meta-train-{}", std::process::id()));
+    let opts = MetaTrainOptions {
+        out: dir.join("meta"),
+        run_dir: dir.join("run"),
+        ppo: PpoConfig {
+            num_envs: 2,
+            num_steps: 4,
+            num_iterations: 2,
+            num_minibatches: 2,
+            update_epochs: 1,
+            ..PpoConfig::default()
+        },
+        curriculum: true,
+        command: "test".into(),
+    };
+    let (manifest, history) = train(Arc::clone(&s), &opts).expect("train");
+    assert_eq!(history.len(), 2);
+    assert_eq!(manifest.skills, ["walk", "turn_left", "sit"]);
+    let (_, head) = load(&dir.join("meta"), &s).expect("load");
+    let zones = vec!["front".to_string(), "behind".to_string()];
+    let a = evaluate(&s, &head, &zones, 3, 3, 7).expect("eval");
+    let b = evaluate(&s, &head, &zones, 3, 3, 7).expect("eval");
+    assert_eq!(a, b, "the same seed gives the same trials");
+    assert_eq!(a.trials.len(), 6);
+    assert_eq!(a.zones.len(), 3);
+    for t in &a.trials {
+        // The chain's order holds in every trial.
+        let order: Vec<&str> = t.skills.iter().map(String::as_str).collect();
+        assert!(["walk", "turn_left", "sit"].starts_with(&order), "illegal order {order:?}");
+    }
+    a.write(&dir.join("report")).expect("write");
+    assert!(std::fs::read_to_string(dir.join("report/report.md")).unwrap().contains("| front | 3 |"));
+    // A controller trained for other skills is refused.
+    let full = setup(None);
+    let err = load(&dir.join("meta"), &full).expect_err("different skills").to_string();
+    assert!(err.contains("meta.ron"), "{err}");
+}

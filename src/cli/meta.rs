@@ -1,0 +1,150 @@
+//! `repertoire meta train [FILE]` and `repertoire meta eval [FILE]`: the meta-controller of a
+//! sitting scenario over the skill library.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use anyhow::{Context, Result};
+use clap::Subcommand;
+use repertoire_meta::eval::evaluate;
+use repertoire_meta::train::{MetaTrainOptions, default_ppo, load, train};
+use repertoire_meta::{MetaSetup, SkillGraph};
+use repertoire_scenes::WorldModel;
+
+/// The committed skill library and meta-controller.
+pub const DEFAULT_LIBRARY: &str = "skills/library";
+/// Where the default meta-controller lives (inside the library).
+pub const DEFAULT_META: &str = "skills/library/meta";
+
+#[derive(Debug, Subcommand)]
+pub enum MetaCommand {
+    /// Train the meta-controller (hybrid PPO at the meta rate, zone curriculum).
+    Train {
+        /// Scenario RON file (default: the built-in scenes/sit.ron).
+        file: Option<PathBuf>,
+        /// Skill library.
+        #[arg(long, default_value = DEFAULT_LIBRARY)]
+        library: PathBuf,
+        /// Where the trained controller goes.
+        #[arg(long, default_value = DEFAULT_META)]
+        out: PathBuf,
+        /// Run directory (default: runs/meta-<time>).
+        #[arg(long)]
+        run_dir: Option<PathBuf>,
+        /// PPO iterations.
+        #[arg(long, default_value_t = 200)]
+        iterations: usize,
+        /// Parallel environments.
+        #[arg(long, default_value_t = 16)]
+        envs: usize,
+        /// Seed.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Open every zone from the start (the "no curriculum" ablation).
+        #[arg(long)]
+        no_curriculum: bool,
+        /// Replace the scenario's skill graph by this fixed-order chain (e.g. walk,turn_left,sit).
+        #[arg(long, value_delimiter = ',')]
+        chain: Vec<String>,
+    },
+    /// Evaluate a trained meta-controller: success and minimum distance per zone, transition
+    /// matrices; writes report.md, trials.csv, report.json.
+    Eval {
+        /// Scenario RON file (default: the built-in scenes/sit.ron).
+        file: Option<PathBuf>,
+        /// Skill library.
+        #[arg(long, default_value = DEFAULT_LIBRARY)]
+        library: PathBuf,
+        /// The trained controller.
+        #[arg(long, default_value = DEFAULT_META)]
+        meta: PathBuf,
+        /// Trials per zone.
+        #[arg(long, default_value_t = 10_000)]
+        trials: usize,
+        /// Zones (default: all of the scenario's).
+        #[arg(long, value_delimiter = ',')]
+        zones: Vec<String>,
+        /// Trials run in parallel per batch.
+        #[arg(long, default_value_t = 64)]
+        batch: usize,
+        /// Seed.
+        #[arg(long, default_value_t = 2024)]
+        seed: u64,
+        /// Report folder (default: <meta>/eval).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Same fixed-order chain as at training.
+        #[arg(long, value_delimiter = ',')]
+        chain: Vec<String>,
+    },
+}
+
+/// The scene and skills of `file` with the graph (or `chain`).
+pub fn setup(file: Option<&PathBuf>, library: &Path, chain: &[String]) -> Result<Arc<MetaSetup>> {
+    let model = Arc::new(WorldModel::build(super::load_scenario(file)?)?);
+    let graph = if chain.is_empty() {
+        SkillGraph::of(&model.scenario.scenario)
+    } else {
+        SkillGraph::chain(&chain.iter().map(String::as_str).collect::<Vec<_>>())
+    };
+    Ok(Arc::new(MetaSetup::new(model, library, graph)?))
+}
+
+pub fn run(cmd: MetaCommand) -> Result<()> {
+    let command = std::env::args().collect::<Vec<_>>().join(" ");
+    match cmd {
+        MetaCommand::Train { file, library, out, run_dir, iterations, envs, seed, no_curriculum, chain } => {
+            let setup = setup(file.as_ref(), &library, &chain)?;
+            let secs = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
+            let run_dir = run_dir.unwrap_or_else(|| PathBuf::from(format!("runs/meta-{secs}-s{seed}")));
+            let ppo =
+                repertoire_learn::ppo::PpoConfig { num_envs: envs, num_iterations: iterations, seed, ..default_ppo() };
+            let opts = MetaTrainOptions {
+                out: out.clone(),
+                run_dir: run_dir.clone(),
+                ppo,
+                curriculum: !no_curriculum,
+                command,
+            };
+            let (manifest, history) = train(setup, &opts).context("training the meta-controller")?;
+            let last = history.last();
+            println!("| iterations | decisions | minutes | mean return | success (last iteration) | zone switches |");
+            println!("|---:|---:|---:|---:|---:|---:|");
+            println!(
+                "| {} | {} | {:.1} | {:.2} | {:.1}% | {} |",
+                manifest.iterations,
+                manifest.samples,
+                manifest.seconds / 60.0,
+                last.map_or(f32::NAN, |m| m.mean_return),
+                100.0 * last.and_then(|m| m.terms.first()).map_or(f32::NAN, |t| t.1),
+                manifest.advances.len()
+            );
+            for a in &manifest.advances {
+                println!(
+                    "curriculum: {} → {} after {} episodes (success {:.0}%)",
+                    a.from,
+                    a.to,
+                    a.episode,
+                    100.0 * a.success_rate
+                );
+            }
+            println!("meta-controller written to {}; run in {}", out.display(), run_dir.display());
+            Ok(())
+        }
+        MetaCommand::Eval { file, library, meta, trials, zones, batch, seed, out, chain } => {
+            let setup = setup(file.as_ref(), &library, &chain)?;
+            let (_, head) = load(&meta, &setup)?;
+            let zones = if zones.is_empty() {
+                setup.model.scenario.scenario.spawn.iter().map(|z| z.name.clone()).collect()
+            } else {
+                zones
+            };
+            let report = evaluate(&setup, &head, &zones, trials, batch, seed)?;
+            print!("{}", report.markdown());
+            let out = out.unwrap_or_else(|| meta.join("eval"));
+            report.write(&out)?;
+            println!("\nreport.md, trials.csv and report.json written to {}", out.display());
+            Ok(())
+        }
+    }
+}
