@@ -69,3 +69,57 @@ fn train_eval_and_finetune_a_chain() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("end_poses.ron") && err.contains("skill eval sit"), "{err}");
 }
+
+#[test]
+fn meta_train_eval_and_the_main_job() {
+    let dir = common::temp_dir("cli-meta");
+    let lib = dir.join("library");
+    let lib_s = lib.to_str().unwrap();
+    let spec = |name: &str| Path::new(env!("CARGO_MANIFEST_DIR")).join("skills/skill/specs").join(name);
+    for name in ["walk", "turn_left", "turn_right", "sit"] {
+        let run = dir.join(format!("run-{name}"));
+        ok(&repertoire(&[
+            "skill",
+            "train",
+            spec(&format!("{name}.ron")).to_str().unwrap(),
+            "--library",
+            lib_s,
+            "--run-dir",
+            run.to_str().unwrap(),
+            "--iterations",
+            "1",
+            "--envs",
+            "2",
+            "--checkpoint-every",
+            "0",
+        ]));
+    }
+    let meta = dir.join("meta");
+    let meta_s = meta.to_str().unwrap();
+    let run = dir.join("run-meta");
+    let text = ok(&repertoire(&[
+        "meta",
+        "train",
+        "--library",
+        lib_s,
+        "--out",
+        meta_s,
+        "--run-dir",
+        run.to_str().unwrap(),
+        "--iterations",
+        "1",
+        "--envs",
+        "2",
+    ]));
+    assert!(text.contains("meta-controller written to"), "{text}");
+    let text =
+        ok(&repertoire(&["meta", "eval", "--library", lib_s, "--meta", meta_s, "--trials", "2", "--zones", "front"]));
+    assert!(text.contains("| front | 2 |") && text.contains("| all | 2 |"), "{text}");
+    assert!(meta.join("eval/report.md").exists() && meta.join("eval/trials.csv").exists());
+    // The main job runs the trained controller on the default scenario.
+    let text = ok(&repertoire(&["run", "--library", lib_s, "--meta", meta_s, "--trials", "1"]));
+    assert!(text.contains("| front | 1 |") && text.contains("| behind | 1 |"), "{text}");
+    // Without a controller it says how to get one.
+    let text = ok(&repertoire(&["run", "--meta", dir.join("none").to_str().unwrap(), "--seconds", "0.5"]));
+    assert!(text.contains("no trained meta-controller"), "{text}");
+}

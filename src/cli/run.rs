@@ -1,8 +1,9 @@
 //! `repertoire run [FILE]`: the main job on a scenario.
 //!
-//! Until trained skills exist this loads the scenario, starts an episode in each spawn zone with
-//! the character holding its standing pose under PD control, simulates a few seconds and prints
-//! a summary (the trained sitting demo replaces the hold once the skill library lands).
+//! With a trained meta-controller (default: the committed `skills/library/meta`) this runs it
+//! with the skill library on the scenario and evaluates a quick number of trials per spawn
+//! zone, printing the sitting table. Without one it says how to train it and shows the scene
+//! with the character holding its standing pose under PD control.
 
 use anyhow::Result;
 use clap::Args;
@@ -23,9 +24,45 @@ pub struct RunArgs {
     /// Random seed.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// Skill library.
+    #[arg(long, default_value = super::meta::DEFAULT_LIBRARY)]
+    pub library: PathBuf,
+    /// Trained meta-controller.
+    #[arg(long, default_value = super::meta::DEFAULT_META)]
+    pub meta: PathBuf,
+    /// Trials per spawn zone.
+    #[arg(long, default_value_t = 20)]
+    pub trials: usize,
 }
 
 pub fn run(args: RunArgs) -> Result<()> {
+    if args.meta.join("meta.ron").exists() {
+        let setup = super::meta::setup(args.file.as_ref(), &args.library, &[])?;
+        let (manifest, head) = repertoire_meta::train::load(&args.meta, &setup)?;
+        let zones: Vec<String> = setup.model.scenario.scenario.spawn.iter().map(|z| z.name.clone()).collect();
+        println!(
+            "scenario {} — meta-controller {} ({} iterations) over skills {}; {} trials per zone",
+            setup.model.scenario.scenario.name,
+            args.meta.display(),
+            manifest.iterations,
+            manifest.skills.join(", "),
+            args.trials
+        );
+        let t0 = Instant::now();
+        let report = repertoire_meta::eval::evaluate(&setup, &head, &zones, args.trials, 64, args.seed)?;
+        print!("{}", report.markdown());
+        println!(
+            "
+{} trials in {:.1} s; `repertoire meta eval` runs the full evaluation",
+            report.trials.len(),
+            t0.elapsed().as_secs_f64()
+        );
+        return Ok(());
+    }
+    println!(
+        "no trained meta-controller at {} (train one with `repertoire meta train`); showing the scene instead",
+        args.meta.display()
+    );
     let scenario = super::load_scenario(args.file.as_ref())?;
     let model = Arc::new(WorldModel::build(scenario)?);
     let s = &model.scenario.scenario;
