@@ -123,3 +123,25 @@ fn meta_train_eval_and_the_main_job() {
     let text = ok(&repertoire(&["run", "--meta", dir.join("none").to_str().unwrap(), "--seconds", "0.5"]));
     assert!(text.contains("no trained meta-controller"), "{text}");
 }
+
+#[test]
+fn the_ablation_study_plans_one_described_run_per_variant_and_seed() {
+    let dir = common::temp_dir("cli-ablate");
+    let spec = Path::new(env!("CARGO_MANIFEST_DIR")).join("meta/ablations/sit.ron");
+    let text = ok(&repertoire(&["ablate", spec.to_str().unwrap(), "--plan-only", "--out", dir.to_str().unwrap()]));
+    assert!(text.contains("18 runs planned"), "{text}");
+    let plan = std::fs::read_to_string(dir.join("runs/fixed-order-walk-l-turn-sit-s2/plan.ron")).expect("plan file");
+    assert!(
+        plan.contains("\"--chain\"") && plan.contains("\"walk,turn_left,sit\"") && plan.contains("\"--seed\""),
+        "{plan}"
+    );
+    let plan = std::fs::read_to_string(dir.join("runs/no-curriculum-s1/plan.ron")).expect("plan file");
+    assert!(plan.contains("--no-curriculum"), "{plan}");
+    // A malformed study is refused with its place.
+    let bad = dir.join("bad.ron");
+    std::fs::write(&bad, "Ablation(seeds: [1], iterations: 1, trials: 1, variants: [Variant(nme: \"x\")])").unwrap();
+    let out = repertoire(&["ablate", bad.to_str().unwrap(), "--plan-only"]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("bad.ron:1:") && err.contains("nme"), "{err}");
+}

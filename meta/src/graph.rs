@@ -40,6 +40,22 @@ impl SkillGraph {
         SkillGraph { graph, start }
     }
 
+    /// This graph restricted to `keep` (in this graph's order): the "one turn direction only"
+    /// ablation. `Err` names a skill the graph lacks.
+    pub fn restricted(&self, keep: &[String]) -> Result<Self, String> {
+        if let Some(missing) = keep.iter().find(|k| self.index(k).is_none()) {
+            return Err(format!("skill `{missing}` is not in the graph ({})", self.names().join(", ")));
+        }
+        let graph = self.graph.filter_map(|_, name| keep.contains(name).then(|| name.clone()), |_, &()| Some(()));
+        let start = self
+            .graph
+            .node_indices()
+            .filter(|n| keep.contains(&self.graph[*n]))
+            .map(|n| self.start[n.index()])
+            .collect();
+        Ok(SkillGraph { graph, start })
+    }
+
     /// A fixed-order chain: each skill may only hand over to the next.
     pub fn chain(names: &[&str]) -> Self {
         let mut graph = DiGraph::new();

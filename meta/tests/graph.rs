@@ -39,3 +39,14 @@ fn a_fixed_order_chain_never_allows_an_illegal_skill() {
         assert_eq!(visited, (0..visited.len()).collect::<Vec<_>>(), "illegal order {visited:?}");
     }
 }
+
+#[test]
+fn restricting_the_graph_keeps_its_edges_among_the_kept_skills() {
+    let s = ScenarioFile::builtin_default();
+    let g = SkillGraph::of(&s.scenario);
+    let left = g.restricted(&["walk".into(), "turn_left".into(), "sit".into()]).expect("known skills");
+    assert_eq!(left.names(), ["walk", "turn_left", "sit"]);
+    assert!(left.is_allowed(Some(0), 1) && left.is_allowed(Some(1), 2) && !left.is_allowed(Some(0), 2));
+    assert!(left.is_allowed(None, 0) && !left.is_allowed(None, 2));
+    assert!(g.restricted(&["fly".into()]).is_err());
+}

@@ -46,6 +46,9 @@ pub enum MetaCommand {
         /// Replace the scenario's skill graph by this fixed-order chain (e.g. walk,turn_left,sit).
         #[arg(long, value_delimiter = ',')]
         chain: Vec<String>,
+        /// Restrict the scenario's graph to these skills (e.g. walk,turn_left,sit).
+        #[arg(long, value_delimiter = ',')]
+        skills: Vec<String>,
     },
     /// Evaluate a trained meta-controller: success and minimum distance per zone, transition
     /// matrices; writes report.md, trials.csv, report.json.
@@ -76,16 +79,22 @@ pub enum MetaCommand {
         /// Same fixed-order chain as at training.
         #[arg(long, value_delimiter = ',')]
         chain: Vec<String>,
+        /// Same skill restriction as at training.
+        #[arg(long, value_delimiter = ',')]
+        skills: Vec<String>,
     },
 }
 
-/// The scene and skills of `file` with the graph (or `chain`).
-pub fn setup(file: Option<&PathBuf>, library: &Path, chain: &[String]) -> Result<Arc<MetaSetup>> {
+/// The scene and skills of `file` with its graph, or a fixed-order `chain`, or its graph
+/// restricted to `skills`.
+pub fn setup(file: Option<&PathBuf>, library: &Path, chain: &[String], skills: &[String]) -> Result<Arc<MetaSetup>> {
     let model = Arc::new(WorldModel::build(super::load_scenario(file)?)?);
-    let graph = if chain.is_empty() {
-        SkillGraph::of(&model.scenario.scenario)
-    } else {
+    let graph = if !chain.is_empty() {
         SkillGraph::chain(&chain.iter().map(String::as_str).collect::<Vec<_>>())
+    } else if !skills.is_empty() {
+        SkillGraph::of(&model.scenario.scenario).restricted(skills).map_err(anyhow::Error::msg)?
+    } else {
+        SkillGraph::of(&model.scenario.scenario)
     };
     Ok(Arc::new(MetaSetup::new(model, library, graph)?))
 }
@@ -93,8 +102,8 @@ pub fn setup(file: Option<&PathBuf>, library: &Path, chain: &[String]) -> Result
 pub fn run(cmd: MetaCommand) -> Result<()> {
     let command = std::env::args().collect::<Vec<_>>().join(" ");
     match cmd {
-        MetaCommand::Train { file, library, out, run_dir, iterations, envs, seed, no_curriculum, chain } => {
-            let setup = setup(file.as_ref(), &library, &chain)?;
+        MetaCommand::Train { file, library, out, run_dir, iterations, envs, seed, no_curriculum, chain, skills } => {
+            let setup = setup(file.as_ref(), &library, &chain, &skills)?;
             let secs = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
             let run_dir = run_dir.unwrap_or_else(|| PathBuf::from(format!("runs/meta-{secs}-s{seed}")));
             let ppo =
@@ -131,8 +140,8 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
             println!("meta-controller written to {}; run in {}", out.display(), run_dir.display());
             Ok(())
         }
-        MetaCommand::Eval { file, library, meta, trials, zones, batch, seed, out, chain } => {
-            let setup = setup(file.as_ref(), &library, &chain)?;
+        MetaCommand::Eval { file, library, meta, trials, zones, batch, seed, out, chain, skills } => {
+            let setup = setup(file.as_ref(), &library, &chain, &skills)?;
             let (_, head) = load(&meta, &setup)?;
             let zones = if zones.is_empty() {
                 setup.model.scenario.scenario.spawn.iter().map(|z| z.name.clone()).collect()

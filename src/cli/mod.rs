@@ -1,5 +1,6 @@
 //! Command-line interface: argument parsing and one function per command.
 
+mod ablate;
 mod bench;
 mod clip;
 mod meta;
@@ -42,6 +43,17 @@ pub enum Command {
     /// Train and evaluate the meta-controller of a sitting scenario.
     #[command(subcommand)]
     Meta(meta::MetaCommand),
+    /// Run an ablation study (variants × seeds of the meta-controller) and write its table.
+    Ablate {
+        /// The study (RON): scenario, library, seeds, iterations, trials, variants.
+        spec: PathBuf,
+        /// Output folder (plans, runs, table).
+        #[arg(long, default_value = "runs/ablation")]
+        out: PathBuf,
+        /// Only write the plan files (for a scheduler), run nothing.
+        #[arg(long)]
+        plan_only: bool,
+    },
 }
 
 /// Dispatches one parsed command line.
@@ -53,6 +65,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Clip(cmd) => clip::run(cmd),
         Command::Skill(cmd) => skill::run(cmd),
         Command::Meta(cmd) => meta::run(cmd),
+        Command::Ablate { spec, out, plan_only } => ablate::run(&spec, &out, plan_only),
     }
 }
 

@@ -37,7 +37,7 @@ pub struct RunArgs {
 
 pub fn run(args: RunArgs) -> Result<()> {
     if args.meta.join("meta.ron").exists() {
-        let setup = super::meta::setup(args.file.as_ref(), &args.library, &[])?;
+        let setup = super::meta::setup(args.file.as_ref(), &args.library, &[], &[])?;
         let (manifest, head) = repertoire_meta::train::load(&args.meta, &setup)?;
         let zones: Vec<String> = setup.model.scenario.scenario.spawn.iter().map(|z| z.name.clone()).collect();
         println!(

@@ -1,0 +1,205 @@
+//! `repertoire ablate SPEC.ron`: the sitting paper's ablation tables. Each variant × seed is an
+//! independent run described by a file (`runs/<variant>-s<seed>/plan.ron`: the two commands it
+//! consists of), run as child processes of this binary, skipped when its report exists, so a
+//! scheduler can spread the plan files over machines instead. The reports are gathered into
+//! `table.md` and `table.csv`: success rate and minimum distance per zone, mean ± sd over seeds.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use anyhow::{Context, Result, bail};
+use repertoire_meta::eval::MetaReport;
+use serde::{Deserialize, Serialize};
+
+/// One variant of the full model.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Variant {
+    /// Row label.
+    pub name: String,
+    /// A fixed-order chain instead of the scenario's graph.
+    #[serde(default)]
+    pub chain: Vec<String>,
+    /// The scenario's graph restricted to these skills.
+    #[serde(default)]
+    pub skills: Vec<String>,
+    /// Another skill library (e.g. one without transition fine-tuning).
+    #[serde(default)]
+    pub library: Option<String>,
+    /// Use the zone curriculum.
+    #[serde(default = "yes")]
+    pub curriculum: bool,
+}
+
+fn yes() -> bool {
+    true
+}
+
+/// An ablation study.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Ablation {
+    /// Scenario file (relative to the spec), or omitted for the built-in default.
+    #[serde(default)]
+    pub scenario: Option<String>,
+    /// The skill library (relative to the current directory).
+    #[serde(default = "default_library")]
+    pub library: String,
+    /// Seeds per variant.
+    pub seeds: Vec<u64>,
+    /// Meta-controller PPO iterations per run.
+    pub iterations: usize,
+    /// Evaluation trials per zone.
+    pub trials: usize,
+    /// The variants.
+    pub variants: Vec<Variant>,
+}
+
+fn default_library() -> String {
+    super::meta::DEFAULT_LIBRARY.to_string()
+}
+
+/// What one run consists of (`plan.ron`).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Plan {
+    /// Variant name.
+    pub variant: String,
+    /// Seed.
+    pub seed: u64,
+    /// Arguments of `repertoire` for training, then for evaluation.
+    pub commands: Vec<Vec<String>>,
+    /// Where the evaluation report lands.
+    pub report: PathBuf,
+}
+
+fn slug(name: &str) -> String {
+    name.chars().map(|c| if c.is_ascii_alphanumeric() { c.to_ascii_lowercase() } else { '-' }).collect()
+}
+
+/// Plans every run of `ab` under `out`.
+pub fn plan(ab: &Ablation, spec_dir: &Path, out: &Path) -> Vec<Plan> {
+    let mut plans = Vec::new();
+    for v in &ab.variants {
+        for &seed in &ab.seeds {
+            let dir = out.join("runs").join(format!("{}-s{seed}", slug(&v.name)));
+            let mut common: Vec<String> = Vec::new();
+            if let Some(s) = &ab.scenario {
+                common.push(spec_dir.join(s).display().to_string());
+            }
+            common.extend(["--library".into(), v.library.clone().unwrap_or_else(|| ab.library.clone())]);
+            if !v.chain.is_empty() {
+                common.extend(["--chain".into(), v.chain.join(",")]);
+            }
+            if !v.skills.is_empty() {
+                common.extend(["--skills".into(), v.skills.join(",")]);
+            }
+            let meta = dir.join("meta").display().to_string();
+            let mut train: Vec<String> = vec!["meta".into(), "train".into()];
+            train.extend(common.clone());
+            train.extend(["--out".into(), meta.clone(), "--run-dir".into(), dir.join("train").display().to_string()]);
+            train.extend(["--iterations".into(), ab.iterations.to_string(), "--seed".into(), seed.to_string()]);
+            if !v.curriculum {
+                train.push("--no-curriculum".into());
+            }
+            let mut eval: Vec<String> = vec!["meta".into(), "eval".into()];
+            eval.extend(common);
+            eval.extend(["--meta".into(), meta, "--trials".into(), ab.trials.to_string()]);
+            eval.extend([
+                "--seed".into(),
+                (10_000 + seed).to_string(),
+                "--out".into(),
+                dir.join("eval").display().to_string(),
+            ]);
+            plans.push(Plan {
+                variant: v.name.clone(),
+                seed,
+                commands: vec![train, eval],
+                report: dir.join("eval").join("report.json"),
+            });
+        }
+    }
+    plans
+}
+
+/// Runs (or only plans) the study in `spec` into `out`, then writes the table.
+pub fn run(spec: &Path, out: &Path, plan_only: bool) -> Result<()> {
+    let text = std::fs::read_to_string(spec).with_context(|| format!("reading {}", spec.display()))?;
+    let ab: Ablation = ron::Options::default()
+        .with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME)
+        .from_str(&text)
+        .map_err(|e| anyhow::anyhow!("{}:{}:{}: {}", spec.display(), e.span.start.line, e.span.start.col, e.code))?;
+    if ab.seeds.is_empty() || ab.variants.is_empty() {
+        bail!("{}: an ablation needs at least one seed and one variant", spec.display());
+    }
+    let plans = plan(&ab, spec.parent().unwrap_or(Path::new(".")), out);
+    let exe = std::env::current_exe().context("locating the repertoire binary")?;
+    for p in &plans {
+        let dir = p.report.parent().and_then(Path::parent).expect("runs/<name>/eval/report.json");
+        std::fs::create_dir_all(dir)?;
+        let text = ron::ser::to_string_pretty(p, ron::ser::PrettyConfig::new())?;
+        std::fs::write(dir.join("plan.ron"), text)?;
+        if plan_only || p.report.exists() {
+            continue;
+        }
+        for args in &p.commands {
+            tracing::info!(variant = %p.variant, seed = p.seed, command = %args.join(" "), "ablation run");
+            let status =
+                Command::new(&exe).args(args).status().with_context(|| format!("running {}", args.join(" ")))?;
+            if !status.success() {
+                bail!(
+                    "`repertoire {}` failed ({status}); the plan is in {}",
+                    args.join(" "),
+                    dir.join("plan.ron").display()
+                );
+            }
+        }
+    }
+    if plan_only {
+        println!("{} runs planned under {}", plans.len(), out.join("runs").display());
+        return Ok(());
+    }
+    let (md, csv) = table(&ab, &plans)?;
+    std::fs::write(out.join("table.md"), &md)?;
+    std::fs::write(out.join("table.csv"), csv)?;
+    print!("{md}");
+    println!("\ntable.md and table.csv written to {}", out.display());
+    Ok(())
+}
+
+/// Mean and sample standard deviation.
+fn mean_sd(v: &[f64]) -> (f64, f64) {
+    let n = v.len().max(1) as f64;
+    let m = v.iter().sum::<f64>() / n;
+    let var = v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0).max(1.0);
+    (m, var.sqrt())
+}
+
+fn table(ab: &Ablation, plans: &[Plan]) -> Result<(String, String)> {
+    let mut reports: Vec<(String, MetaReport)> = Vec::new();
+    for p in plans {
+        let text = std::fs::read_to_string(&p.report).with_context(|| format!("reading {}", p.report.display()))?;
+        reports.push((p.variant.clone(), serde_json::from_str(&text).with_context(|| p.report.display().to_string())?));
+    }
+    let zones: Vec<String> =
+        reports.first().map(|(_, r)| r.zones.iter().map(|z| z.zone.clone()).collect()).unwrap_or_default();
+    let mut md = format!(
+        "| variant | seeds | {} |\n",
+        zones.iter().map(|z| format!("{z}: success / min dist (m)")).collect::<Vec<_>>().join(" | ")
+    );
+    let _ = writeln!(md, "|---|---:|{}", "---:|".repeat(zones.len()));
+    let mut csv = String::from("variant,zone,seeds,success_mean,success_sd,min_distance_mean,min_distance_sd\n");
+    for v in &ab.variants {
+        let mine: Vec<&MetaReport> = reports.iter().filter(|(n, _)| n == &v.name).map(|(_, r)| r).collect();
+        let mut cells = Vec::new();
+        for z in &zones {
+            let rows: Vec<_> = mine.iter().filter_map(|r| r.zones.iter().find(|row| &row.zone == z)).collect();
+            let (sm, ss) = mean_sd(&rows.iter().map(|r| 100.0 * r.success_rate).collect::<Vec<_>>());
+            let (dm, ds) = mean_sd(&rows.iter().map(|r| r.min_distance_mean).collect::<Vec<_>>());
+            cells.push(format!("{sm:.1} ± {ss:.1}% / {dm:.2} ± {ds:.2}"));
+            let _ = writeln!(csv, "{},{z},{},{sm:.3},{ss:.3},{dm:.4},{ds:.4}", v.name, mine.len());
+        }
+        let _ = writeln!(md, "| {} | {} | {} |", v.name, mine.len(), cells.join(" | "));
+    }
+    Ok((md, csv))
+}
