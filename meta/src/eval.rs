@@ -24,6 +24,8 @@ pub struct Trial {
     pub zone: String,
     /// Start position and heading.
     pub start: (f64, f64, f64),
+    /// Start position in the chair's frame (x: in front of it, y: its left).
+    pub local_start: (f64, f64),
     /// Which side of the chair it started on (`left`, `right`, seen from the chair).
     pub side: String,
     /// 3 s of unbroken seat contact reached.
@@ -124,11 +126,13 @@ fn trial_of(setup: &MetaSetup, env: &MetaEnv, index: usize, zone: &str, terms: &
     let (x, y, _) = env.start;
     // Side in the chair's frame: +y of the chair is its left.
     let (s, c) = chair.yaw.sin_cos();
+    let local_x = c * (x - chair.pos[0]) + s * (y - chair.pos[1]);
     let local_y = -s * (x - chair.pos[0]) + c * (y - chair.pos[1]);
     Trial {
         index,
         zone: zone.to_string(),
         start: env.start,
+        local_start: (local_x, local_y),
         side: if local_y >= 0.0 { "left".into() } else { "right".into() },
         success: terms[0] > 0.5,
         fell: terms[2] > 0.5,
@@ -230,13 +234,97 @@ impl MetaReport {
             );
         }
         let json = serde_json_string(self);
-        for (name, text) in [("report.md", self.markdown()), ("trials.csv", csv), ("report.json", json)] {
+        let files = [
+            ("report.md", self.markdown()),
+            ("trials.csv", csv),
+            ("report.json", json),
+            ("heatmap.svg", self.heatmap_svg()),
+        ];
+        for (name, text) in files {
             let path = dir.join(name);
             let partial = dir.join(format!("{name}.partial"));
             std::fs::write(&partial, text).map_err(err)?;
             std::fs::rename(&partial, &path).map_err(err)?;
         }
         Ok(())
+    }
+}
+
+impl MetaReport {
+    /// A success heat map over start positions relative to the chair (SVG): the plane around
+    /// the chair in 0.5 m cells, each coloured by its success rate (red 0 % → green 100 %,
+    /// grey: no trial), the chair drawn at the centre facing +x (up in the picture).
+    pub fn heatmap_svg(&self) -> String {
+        const HALF: f64 = 3.0;
+        const CELL: f64 = 0.5;
+        const PX: f64 = 40.0;
+        let n = (2.0 * HALF / CELL) as usize;
+        let mut counts = vec![(0u32, 0u32); n * n];
+        for t in &self.trials {
+            let (x, y) = (t.local_start.0, t.local_start.1);
+            if x.abs() >= HALF || y.abs() >= HALF {
+                continue;
+            }
+            // Picture: chair +x points up, chair +y (its left) points left.
+            let col = ((HALF - y) / CELL) as usize;
+            let row = ((HALF - x) / CELL) as usize;
+            let c = &mut counts[row.min(n - 1) * n + col.min(n - 1)];
+            c.0 += 1;
+            c.1 += u32::from(t.success);
+        }
+        let size = n as f64 * PX;
+        let mut svg = String::new();
+        let _ = writeln!(
+            svg,
+            r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" font-family="sans-serif" font-size="12">"#,
+            w = size + 120.0,
+            h = size + 40.0
+        );
+        let _ = writeln!(
+            svg,
+            r#"<text x="4" y="14">success by start position (chair frame, 0.5 m cells; chair faces up)</text>"#
+        );
+        for row in 0..n {
+            for col in 0..n {
+                let (k, s) = counts[row * n + col];
+                let fill = if k == 0 {
+                    "#dddddd".to_string()
+                } else {
+                    let r = f64::from(s) / f64::from(k);
+                    format!("rgb({},{},60)", (220.0 * (1.0 - r)) as u8 + 30, (200.0 * r) as u8 + 30)
+                };
+                let _ = writeln!(
+                    svg,
+                    r#"<rect x="{}" y="{}" width="{PX}" height="{PX}" fill="{fill}" stroke="white"><title>{s}/{k}</title></rect>"#,
+                    col as f64 * PX,
+                    20.0 + row as f64 * PX
+                );
+            }
+        }
+        let c = size / 2.0;
+        let _ = writeln!(
+            svg,
+            r##"<rect x="{}" y="{}" width="{}" height="{}" fill="none" stroke="#333" stroke-width="3"/>"##,
+            c - 0.23 * PX / CELL,
+            20.0 + c - 0.21 * PX / CELL,
+            0.46 * PX / CELL,
+            0.42 * PX / CELL
+        );
+        for (i, label) in ["100%", "50%", "0%"].iter().enumerate() {
+            let r = 1.0 - i as f64 * 0.5;
+            let _ = writeln!(
+                svg,
+                r#"<rect x="{}" y="{}" width="20" height="20" fill="rgb({},{},60)"/><text x="{}" y="{}">{label}</text>"#,
+                size + 10.0,
+                30.0 + i as f64 * 30.0,
+                (220.0 * (1.0 - r)) as u8 + 30,
+                (200.0 * r) as u8 + 30,
+                size + 36.0,
+                45.0 + i as f64 * 30.0
+            );
+        }
+        svg.push_str("</svg>\n");
+        svg
     }
 }
 

@@ -110,6 +110,8 @@ fn training_writes_a_controller_and_evaluation_is_reproducible() {
     }
     a.write(&dir.join("report")).expect("write");
     assert!(std::fs::read_to_string(dir.join("report/report.md")).unwrap().contains("| front | 3 |"));
+    let svg = std::fs::read_to_string(dir.join("report/heatmap.svg")).unwrap();
+    assert!(svg.starts_with("<svg") && svg.matches("<rect").count() > 144, "a 12 × 12 grid and a chair");
     // A controller trained for other skills is refused.
     let full = setup(None);
     let err = load(&dir.join("meta"), &full).expect_err("different skills").to_string();
