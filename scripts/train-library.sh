@@ -5,8 +5,10 @@
 #   2. transition fine-tuning: the turns from walk's end poses, sit from the turns' end poses;
 #   3. `skill eval` over TRIALS trials from the clip start and from predecessors' end poses
 #      (which also writes each skill's end-pose pool, used by the next stage).
-# Usage: bash scripts/train-library.sh [LIBRARY] — env: TRIALS (1000), FINETUNE_ITERS (the spec's),
-# EXTRA (more arguments for every train/finetune, e.g. "--iterations 50" for a smoke run).
+# The stage-one library is kept beside it as LIBRARY-stage1 (for the no-fine-tuning ablation).
+# Usage: bash scripts/train-library.sh [LIBRARY] — env: TRIALS (1000), TURN_FINETUNE_ITERS (400),
+# SIT_FINETUNE_ITERS (the spec's),
+# EXTRA (more arguments for every train/finetune, e.g. "--envs 8").
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$root"
@@ -21,10 +23,12 @@ specs=skills/skill/specs
 for s in walk turn_left turn_right sit; do
   "$bin" skill train "$specs/$s.ron" --library "$lib" "${extra[@]}"
 done
+# Keep the stage-one library: the "no transition fine-tuning" ablation runs on it.
+rm -rf "$lib-stage1" && cp -r "$lib" "$lib-stage1"
 "$bin" skill eval "$specs/walk.ron" --library "$lib" --trials "$trials"
 for s in turn_left turn_right; do
-  "$bin" skill finetune "$specs/$s.ron" --from walk --library "$lib" ${FINETUNE_ITERS:+--iterations "$FINETUNE_ITERS"} "${extra[@]}"
+  "$bin" skill finetune "$specs/$s.ron" --from walk --library "$lib" --iterations "${TURN_FINETUNE_ITERS:-400}" "${extra[@]}"
   "$bin" skill eval "$specs/$s.ron" --library "$lib" --trials "$trials" --from walk
 done
-"$bin" skill finetune "$specs/sit.ron" --from turn_left,turn_right --library "$lib" ${FINETUNE_ITERS:+--iterations "$FINETUNE_ITERS"} "${extra[@]}"
+"$bin" skill finetune "$specs/sit.ron" --from turn_left,turn_right --library "$lib" ${SIT_FINETUNE_ITERS:+--iterations "$SIT_FINETUNE_ITERS"} "${extra[@]}"
 "$bin" skill eval "$specs/sit.ron" --library "$lib" --trials "$trials" --from turn_left,turn_right

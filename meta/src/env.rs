@@ -3,6 +3,10 @@
 //! character for `control_hz / meta_hz` control ticks. Reward: 1 while the pelvis touches the
 //! seat, else `0.5·(−V_sit)` with `V_sit` the rate of change of the pelvis-to-seat distance.
 //! The episode ends on success (3 s of unbroken seat contact), a fall, or the time limit.
+//!
+//! A skill whose clip does not loop (a turn cycle, the sit-down) is never run past its clip's
+//! end, where its policy was never trained: the decision ends early there, and choosing the
+//! same skill again plays its clip once more from the start.
 
 use std::f64::consts::TAU;
 use std::path::Path;
@@ -59,6 +63,8 @@ pub struct MetaSetup {
     pub hold_s: f64,
     /// Episode limit in decisions.
     pub max_decisions: u32,
+    /// Episode limit in simulated seconds.
+    pub time_limit_s: f64,
     /// Control ticks per decision.
     pub ticks: usize,
     /// Spawn zones episodes start in (the curriculum changes them between iterations).
@@ -100,6 +106,7 @@ impl MetaSetup {
         let zones = sc.spawn.iter().map(|z| z.name.clone()).collect();
         Ok(MetaSetup {
             max_decisions: (time_limit_s * f64::from(rates.meta_hz)).round().max(1.0) as u32,
+            time_limit_s: *time_limit_s,
             model,
             skills,
             graph,
@@ -288,6 +295,13 @@ impl Env for MetaEnv {
         } else {
             self.current.unwrap_or_else(|| mask.iter().position(|&m| m).unwrap_or(0))
         };
+        let clip_over = |env: &Self, c: usize| {
+            let sk = &env.setup.skills[c];
+            !sk.looping && env.phase + 1 >= sk.frames.max(2)
+        };
+        if self.current == Some(option) && clip_over(self, option) {
+            self.phase = 0;
+        }
         if self.current != Some(option) {
             self.phase = 0;
             self.switches += u32::from(self.current.is_some());
@@ -299,8 +313,10 @@ impl Env for MetaEnv {
             self.target = [p[0] + yaw.cos() * dx - yaw.sin() * dy, p[1] + yaw.sin() * dx + yaw.cos() * dy];
         }
         let mut fell = false;
+        let mut ran = 0usize;
         for _ in 0..self.setup.ticks {
             self.tick(option);
+            ran += 1;
             let on = self.world.contacts().pelvis_on_prop(self.setup.seat);
             let d = self.seat_distance();
             self.judge.tick(on, d);
@@ -308,13 +324,14 @@ impl Env for MetaEnv {
                 fell = true;
                 break;
             }
-            if self.judge.succeeded {
+            if self.judge.succeeded || clip_over(self, option) {
                 break;
             }
         }
         self.decisions += 1;
         let d = self.seat_distance();
-        let dt = self.setup.ticks as f64 / f64::from(self.setup.model.scenario.scenario.rates.control_hz);
+        let control_dt = 1.0 / f64::from(self.setup.model.scenario.scenario.rates.control_hz);
+        let dt = ran as f64 * control_dt;
         let on_seat = self.world.contacts().pelvis_on_prop(self.setup.seat);
         let reward = if fell {
             0.0
@@ -325,14 +342,18 @@ impl Env for MetaEnv {
         };
         self.last_distance = d;
         let success = self.judge.succeeded;
-        let truncated = !success && !fell && self.decisions >= self.setup.max_decisions;
+        // Decisions can end early (a clip's end), so the limit is in simulated time, with a
+        // decision count as a backstop.
+        let out_of_time =
+            self.world.time() >= self.setup.time_limit_s - 1e-9 || self.decisions >= 4 * self.setup.max_decisions;
+        let truncated = !success && !fell && out_of_time;
         let done = success || fell || truncated;
         let mut terms = [0.0; MAX_TERMS];
         if done {
             terms[0] = f32::from(u8::from(success));
             terms[1] = self.judge.min_distance as f32;
             terms[2] = f32::from(u8::from(fell));
-            terms[3] = self.decisions as f32 * dt as f32;
+            terms[3] = self.world.time() as f32;
             terms[4] = self.switches as f32;
         }
         self.observe(obs);

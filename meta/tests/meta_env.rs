@@ -76,6 +76,40 @@ fn a_decision_runs_the_chosen_skill_and_respects_the_graph() {
 }
 
 #[test]
+fn a_turn_is_never_run_past_its_clip() {
+    let s = setup(None);
+    let frames = s.skills[1].frames;
+    assert!(!s.skills[1].looping);
+    let mut env = MetaEnv::new(Arc::clone(&s));
+    let mut rng = EnvRng::seed_from_u64(3);
+    let mut obs = vec![0.0; env.obs_dim()];
+    env.reset(&mut rng, &mut obs);
+    // turn_left until its clip ends: full decisions, then a short one ending on the last frame.
+    let mut ticks = 0usize;
+    for _ in 0..10 {
+        let t0 = env.world().time();
+        let out = env.step(&[1.0, 0.0, 0.0], &mut obs);
+        if out.terminated {
+            return; // a barely trained turn may fall; nothing more to check
+        }
+        let k = ((env.world().time() - t0) * 60.0).round() as usize;
+        ticks += k;
+        if k < 30 {
+            assert_eq!(ticks, frames - 1, "the decision ends exactly at the clip's last frame");
+            break;
+        }
+    }
+    assert_eq!(ticks, frames - 1);
+    // Choosing the turn again plays its clip again: a full decision.
+    let t0 = env.world().time();
+    let out = env.step(&[1.0, 0.0, 0.0], &mut obs);
+    if !out.terminated {
+        assert!((env.world().time() - t0 - 0.5).abs() < 1e-5);
+    }
+    assert_eq!(env.chosen, [1], "re-choosing the current skill is not a switch");
+}
+
+#[test]
 fn training_writes_a_controller_and_evaluation_is_reproducible() {
     let s = setup(Some(SkillGraph::chain(&["walk", "turn_left", "sit"])));
     let dir = std::env::temp_dir().join(format!("repertoire-meta-train-{}", std::process::id()));

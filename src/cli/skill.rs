@@ -58,6 +58,9 @@ pub enum SkillCommand {
         /// Do not write the end-pose pool.
         #[arg(long)]
         no_pool: bool,
+        /// Most end poses kept in the pool (an even spread over the successful trials).
+        #[arg(long, default_value_t = 200)]
+        pool_size: usize,
     },
 }
 
@@ -97,8 +100,8 @@ pub fn run(cmd: SkillCommand) -> Result<()> {
         SkillCommand::Finetune { spec, from, fraction, common } => {
             train_cmd(&spec, Some((from, fraction)), common, command)
         }
-        SkillCommand::Eval { spec, library, trials, batch, seed, from, no_pool } => {
-            eval_cmd(&spec, &library, trials, batch, seed, from, no_pool)
+        SkillCommand::Eval { spec, library, trials, batch, seed, from, no_pool, pool_size } => {
+            eval_cmd(&spec, &library, trials, batch, seed, from, no_pool, pool_size)
         }
     }
 }
@@ -151,6 +154,7 @@ fn train_cmd(spec_path: &Path, finetune: Option<(Vec<String>, f64)>, a: TrainArg
     Ok(())
 }
 
+#[allow(clippy::too_many_arguments)]
 fn eval_cmd(
     spec_path: &Path,
     library: &Path,
@@ -159,6 +163,7 @@ fn eval_cmd(
     seed: u64,
     from: Vec<String>,
     no_pool: bool,
+    pool_size: usize,
 ) -> Result<()> {
     let mut spec = SpecFile::load(spec_path)?;
     let predecessors = if from.is_empty() {
@@ -202,7 +207,9 @@ fn eval_cmd(
         );
     }
     if !no_pool {
-        let pool = pool_of(&setup, ends);
+        let step = ends.len().div_ceil(pool_size.max(1)).max(1);
+        let kept: Vec<_> = ends.into_iter().step_by(step).collect();
+        let pool = pool_of(&setup, kept);
         let path = library::skill_dir(library, &name).join("end_poses.ron");
         pool.save(&path)?;
         println!("{} successful end poses written to {}", pool.states.len(), path.display());
