@@ -4,6 +4,9 @@
 //! seat, else `0.5·(−V_sit)` with `V_sit` the rate of change of the pelvis-to-seat distance.
 //! The episode ends on success (3 s of unbroken seat contact), a fall, or the time limit.
 //!
+//! Episodes start mid-motion in the first start skill's successful end states (e.g. walking),
+//! at the spawn point and heading the zone draws; without such a pool, standing still.
+//!
 //! A skill whose clip does not loop (a turn cycle, the sit-down) is never run past its clip's
 //! end, where its policy was never trained: the decision ends early there, and choosing the
 //! same skill again plays its clip once more from the start.
@@ -19,6 +22,7 @@ use repertoire_learn::env::{Env, EnvRng, MAX_TERMS, StepOutcome};
 use repertoire_scenes::scenario::Task as ScenarioTask;
 use repertoire_scenes::{Feature, ObservationLayout, World, WorldModel};
 use repertoire_skill::library::{self, LibrarySkill};
+use repertoire_skill::pool::Pool;
 use repertoire_skill::reference::to_heading;
 use repertoire_skill::spec::Goal;
 
@@ -69,6 +73,9 @@ pub struct MetaSetup {
     pub ticks: usize,
     /// Spawn zones episodes start in (the curriculum changes them between iterations).
     pub zones: Arc<RwLock<Vec<String>>>,
+    /// Where episodes start: mid-motion in a start skill's successful end states (its
+    /// `end_poses.ron`), so the first skill runs from a state it knows; `None`: standing still.
+    pub start_pool: Option<(usize, Pool)>,
 }
 
 impl MetaSetup {
@@ -84,7 +91,15 @@ impl MetaSetup {
         };
         let seat_id = model.prop_id(seat).ok_or_else(|| MetaError::Invalid(format!("no seat prop `{seat}`")))?;
         let mut skills = Vec::new();
-        for name in graph.names() {
+        let mut start_pool = None;
+        for (k, name) in graph.names().into_iter().enumerate() {
+            let pool_path = library::skill_dir(library, name).join("end_poses.ron");
+            if start_pool.is_none() && graph.is_allowed(None, k) && pool_path.exists() {
+                let pool = Pool::load(&pool_path)?;
+                if !pool.states.is_empty() && pool.body_hash == model.body.content_hash() {
+                    start_pool = Some((k, pool));
+                }
+            }
             let s: LibrarySkill = library::load(library, name)?;
             s.check_fits(&model)?;
             let layout = ObservationLayout::new(&model, &s.manifest.observation.features)?;
@@ -115,6 +130,7 @@ impl MetaSetup {
             hold_s: *hold_s,
             ticks,
             zones: Arc::new(RwLock::new(zones)),
+            start_pool,
         })
     }
 
@@ -278,6 +294,14 @@ impl Env for MetaEnv {
         self.switches = 0;
         self.chosen.clear();
         self.judge = SitJudge::new(self.setup.hold_s, f64::from(self.setup.model.scenario.scenario.rates.control_hz));
+        if let Some((k, pool)) = &self.setup.start_pool {
+            let state = &pool.states[rng.random_range(0..pool.states.len())];
+            let (x, y, yaw) = self.start;
+            state.apply(&mut self.world, x, y, yaw).expect("pool states are validated on load");
+            self.current = Some(*k);
+            self.phase = state.phase.min(self.setup.skills[*k].frames.saturating_sub(1));
+            self.chosen.push(*k);
+        }
         self.last_distance = self.seat_distance();
         self.judge.tick(false, self.last_distance);
         self.observe(obs);

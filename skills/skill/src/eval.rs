@@ -183,7 +183,9 @@ pub fn evaluate(
             report.normalized_return += returns[i] / (max_reward_per_step * f64::from(max_len[i])).max(1e-9);
             report.mean_return += returns[i];
             if success {
-                pool.push(PoolState::capture(env.world()));
+                let mut state = PoolState::capture(env.world());
+                state.phase = env.task().phase();
+                pool.push(state);
             }
             returns[i] = 0.0;
             if started < trials {

@@ -25,6 +25,10 @@ pub struct PoolState {
     pub joints: Vec<f64>,
     /// Actuated joint velocities, map order.
     pub joint_vel: Vec<f64>,
+    /// The skill's reference frame at this state (so a successor that continues the same skill,
+    /// like the meta-controller starting mid-walk, knows where in the clip it is).
+    #[serde(default)]
+    pub phase: usize,
 }
 
 impl PoolState {
@@ -42,6 +46,7 @@ impl PoolState {
             angular: [v[d + 3], v[d + 4], v[d + 5]],
             joints: idx.joints.iter().map(|j| q[j.qpos]).collect(),
             joint_vel: idx.joints.iter().map(|j| v[j.dof]).collect(),
+            phase: 0,
         }
     }
 
