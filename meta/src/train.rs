@@ -132,7 +132,7 @@ pub fn train(setup: Arc<MetaSetup>, opts: &MetaTrainOptions) -> Result<(MetaMani
     };
     let text = ron::ser::to_string_pretty(&manifest, ron::ser::PrettyConfig::new().depth_limit(2))
         .map_err(|e| MetaError::Invalid(e.to_string()))?;
-    write_atomic(&opts.out.join("meta.ron"), text.as_bytes())?;
+    repertoire_skill::library::write_atomic(&opts.out.join("meta.ron"), text.as_bytes())?;
     Ok((manifest, history))
 }
 
@@ -160,10 +160,4 @@ pub fn load(dir: &Path, setup: &MetaSetup) -> Result<(MetaManifest, ActingHybrid
     }
     let head = ActingHybrid::load(&dir.join("meta.safetensors")).map_err(|e| MetaError::Invalid(e.to_string()))?;
     Ok((manifest, head))
-}
-
-fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let partial = PathBuf::from(format!("{}.partial", path.display()));
-    std::fs::write(&partial, bytes).map_err(|e| MetaError::Invalid(format!("{}: {e}", partial.display())))?;
-    std::fs::rename(&partial, path).map_err(|e| MetaError::Invalid(format!("{}: {e}", path.display())))
 }

@@ -116,15 +116,20 @@ impl SceneError {
     /// Wraps a RON parse error of `file` (whose text is `text`) with a sentence a person can act on.
     pub fn from_ron(file: &Path, err: ron::error::SpannedError) -> Self {
         let loc = Location { line: err.span.start.line, col: err.span.start.col };
-        let message = match &err.code {
-            ron::Error::NoSuchStructField { expected, found, outer } => format!(
-                "unknown field `{found}`{}; expected one of: {}",
-                outer.as_ref().map(|o| format!(" in `{o}`")).unwrap_or_default(),
-                expected.join(", ")
-            ),
-            other => other.to_string(),
-        };
-        Self::Ron { file: file.to_path_buf(), loc, message }
+        Self::Ron { file: file.to_path_buf(), loc, message: ron_message(&err.code) }
+    }
+}
+
+/// A RON parser error as a sentence a person can act on (an unknown field lists the known ones);
+/// shared by every crate that reads RON files.
+pub fn ron_message(code: &ron::Error) -> String {
+    match code {
+        ron::Error::NoSuchStructField { expected, found, outer } => format!(
+            "unknown field `{found}`{}; expected one of: {}",
+            outer.as_ref().map(|o| format!(" in `{o}`")).unwrap_or_default(),
+            expected.join(", ")
+        ),
+        other => other.to_string(),
     }
 }
 

@@ -87,15 +87,7 @@ impl ClipError {
     /// Wraps a RON parse error of `file`.
     pub(crate) fn from_ron(file: &Path, err: ron::error::SpannedError) -> Self {
         let loc = Location { line: err.span.start.line, col: err.span.start.col };
-        let message = match &err.code {
-            ron::Error::NoSuchStructField { expected, found, outer } => format!(
-                "unknown field `{found}`{}; expected one of: {}",
-                outer.as_ref().map(|o| format!(" in `{o}`")).unwrap_or_default(),
-                expected.join(", ")
-            ),
-            other => other.to_string(),
-        };
-        ClipError::Ron { file: file.to_path_buf(), loc, message }
+        ClipError::Ron { file: file.to_path_buf(), loc, message: repertoire_scenes::error::ron_message(&err.code) }
     }
 
     /// An unusable-clip error.

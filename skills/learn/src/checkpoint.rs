@@ -112,7 +112,7 @@ pub struct Manifest {
 }
 
 /// 64-bit FNV-1a (enough to detect a torn or swapped file; not a cryptographic check).
-fn fnv1a(bytes: &[u8]) -> u64 {
+pub fn fnv1a(bytes: &[u8]) -> u64 {
     bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3))
 }
 

@@ -78,6 +78,21 @@ fn log_sum_exp(x: &[f32]) -> f32 {
     max + x.iter().map(|v| (v - max).exp()).sum::<f32>().ln()
 }
 
+/// Draws an index from `softmax(logits)` (`lse` is their log-sum-exp) by inverting the CDF;
+/// rounding that leaves the sum short of 1 falls to the last option not masked out.
+fn sample_categorical(logits: &[f32], lse: f32, rng: &mut impl Rng) -> usize {
+    let u: f32 = rng.random();
+    let mut acc = 0.0;
+    (0..logits.len())
+        .find(|&j| {
+            acc += (logits[j] - lse).exp();
+            u < acc
+        })
+        .unwrap_or_else(|| {
+            (0..logits.len()).rev().find(|&j| logits[j] > MASKED_LOGIT / 2.0).unwrap_or(logits.len() - 1)
+        })
+}
+
 /// A standard normal sample (Box–Muller; exact and portable, so runs are reproducible).
 pub fn standard_normal(rng: &mut impl Rng) -> f32 {
     let u1: f32 = 1.0 - rng.random::<f32>(); // (0, 1]
@@ -285,14 +300,7 @@ impl HybridInference {
         for i in 0..batch {
             let l = &self.scratch_logits[i * k..(i + 1) * k];
             let lse = log_sum_exp(l);
-            let u: f32 = rng.random();
-            let mut acc = 0.0;
-            let option = (0..k)
-                .find(|&j| {
-                    acc += (l[j] - lse).exp();
-                    u < acc
-                })
-                .unwrap_or_else(|| (0..k).rev().find(|&j| l[j] > MASKED_LOGIT / 2.0).unwrap_or(k - 1));
+            let option = sample_categorical(l, lse, rng);
             let row = &mut actions[i * (1 + c)..(i + 1) * (1 + c)];
             row[0] = option as f32;
             let mean = &self.scratch_means[i * c..(i + 1) * c];
@@ -414,14 +422,7 @@ impl HybridPolicy {
             .map(|i| {
                 let l = &logits[i * k..(i + 1) * k];
                 let lse = log_sum_exp(l);
-                let u: f32 = rng.random();
-                let mut acc = 0.0;
-                let option = (0..k)
-                    .find(|&j| {
-                        acc += (l[j] - lse).exp();
-                        u < acc
-                    })
-                    .unwrap_or(k - 1);
+                let option = sample_categorical(l, lse, rng);
                 let mean = &means[i * c..(i + 1) * c];
                 let continuous: Vec<f32> =
                     mean.iter().zip(&log_std).map(|(m, ls)| m + ls.exp() * standard_normal(rng)).collect();

@@ -6,6 +6,7 @@
 use std::path::{Path, PathBuf};
 
 use repertoire_learn::acting::ActingPolicy;
+use repertoire_learn::checkpoint::fnv1a;
 use repertoire_scenes::{ObservationLayout, WorldModel};
 use serde::{Deserialize, Serialize};
 
@@ -91,10 +92,6 @@ pub struct LibrarySkill {
     pub manifest: SkillManifest,
     /// The policy.
     pub policy: ActingPolicy,
-}
-
-fn fnv1a(bytes: &[u8]) -> u64 {
-    bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3))
 }
 
 /// Writes `bytes` to `path` via `path.partial` and a rename, so readers never see half a file.
