@@ -67,6 +67,32 @@ impl ZoneCurriculum {
         &self.zones[self.current]
     }
 
+    /// Index of the current zone in the schedule.
+    pub fn current_index(&self) -> usize {
+        self.current
+    }
+
+    /// The schedule's zones, easiest first.
+    pub fn zones(&self) -> &[String] {
+        &self.zones
+    }
+
+    /// The windowed success rate that opens the next zone.
+    pub fn advance_at(&self) -> f64 {
+        self.advance_at
+    }
+
+    /// Episodes recorded so far.
+    pub fn episodes(&self) -> u64 {
+        self.episodes
+    }
+
+    /// The success rate over the episodes recorded in the current window so far (None before
+    /// the first), for logs and plots; advancing waits for a full window.
+    pub fn window_rate(&self) -> Option<f64> {
+        (!self.recent.is_empty()).then(|| self.recent.iter().filter(|&&s| s).count() as f64 / self.recent.len() as f64)
+    }
+
     /// Whether the last zone has been reached.
     pub fn finished(&self) -> bool {
         self.current + 1 >= self.zones.len()

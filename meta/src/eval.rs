@@ -10,6 +10,7 @@ use rand::SeedableRng;
 use rayon::prelude::*;
 use repertoire_learn::acting::ActingHybrid;
 use repertoire_learn::env::{Env, EnvRng};
+use repertoire_report::{StartPoint, success_map, transition_matrix};
 use serde::{Deserialize, Serialize};
 
 use crate::env::{MetaEnv, MetaSetup};
@@ -238,7 +239,6 @@ impl MetaReport {
             ("report.md", self.markdown()),
             ("trials.csv", csv),
             ("report.json", json),
-            ("heatmap.svg", self.heatmap_svg()),
         ];
         for (name, text) in files {
             let path = dir.join(name);
@@ -246,85 +246,28 @@ impl MetaReport {
             std::fs::write(&partial, text).map_err(err)?;
             std::fs::rename(&partial, &path).map_err(err)?;
         }
-        Ok(())
+        self.plot(dir)
     }
-}
 
-impl MetaReport {
-    /// A success heat map over start positions relative to the chair (SVG): the plane around
-    /// the chair in 0.5 m cells, each coloured by its success rate (red 0 % → green 100 %,
-    /// grey: no trial), the chair drawn at the centre facing +x (up in the picture).
-    pub fn heatmap_svg(&self) -> String {
-        const HALF: f64 = 3.0;
-        const CELL: f64 = 0.5;
-        const PX: f64 = 40.0;
-        let n = (2.0 * HALF / CELL) as usize;
-        let mut counts = vec![(0u32, 0u32); n * n];
-        for t in &self.trials {
-            let (x, y) = (t.local_start.0, t.local_start.1);
-            if x.abs() >= HALF || y.abs() >= HALF {
-                continue;
-            }
-            // Picture: chair +x points up, chair +y (its left) points left.
-            let col = ((HALF - y) / CELL) as usize;
-            let row = ((HALF - x) / CELL) as usize;
-            let c = &mut counts[row.min(n - 1) * n + col.min(n - 1)];
-            c.0 += 1;
-            c.1 += u32::from(t.success);
+    /// Draws the success map over start positions (`heatmap.png`/`.svg`) and one transition
+    /// matrix per start side (`transitions-<side>.png`/`.svg`) into `dir`.
+    pub fn plot(&self, dir: &Path) -> Result<()> {
+        let plot_err = |e: repertoire_report::ReportError| MetaError::Invalid(e.to_string());
+        let points: Vec<StartPoint> = self
+            .trials
+            .iter()
+            .map(|t| StartPoint { x: t.local_start.0, y: t.local_start.1, success: t.success })
+            .collect();
+        let all = self.zones.last().map_or(0.0, |z| z.success_rate);
+        let title = format!("success by start position ({} trials, {:.1}%)", self.trials.len(), 100.0 * all);
+        success_map(&dir.join("heatmap"), &title, &points).map_err(plot_err)?;
+        let rows: Vec<String> = std::iter::once("start".to_string()).chain(self.skills.iter().cloned()).collect();
+        for (side, counts) in &self.transitions {
+            let title = format!("skill transitions, starts on the chair's {side}");
+            transition_matrix(&dir.join(format!("transitions-{side}")), &title, &rows, &self.skills, counts)
+                .map_err(plot_err)?;
         }
-        let size = n as f64 * PX;
-        let mut svg = String::new();
-        let _ = writeln!(
-            svg,
-            r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" font-family="sans-serif" font-size="12">"#,
-            w = size + 120.0,
-            h = size + 40.0
-        );
-        let _ = writeln!(
-            svg,
-            r#"<text x="4" y="14">success by start position (chair frame, 0.5 m cells; chair faces up)</text>"#
-        );
-        for row in 0..n {
-            for col in 0..n {
-                let (k, s) = counts[row * n + col];
-                let fill = if k == 0 {
-                    "#dddddd".to_string()
-                } else {
-                    let r = f64::from(s) / f64::from(k);
-                    format!("rgb({},{},60)", (220.0 * (1.0 - r)) as u8 + 30, (200.0 * r) as u8 + 30)
-                };
-                let _ = writeln!(
-                    svg,
-                    r#"<rect x="{}" y="{}" width="{PX}" height="{PX}" fill="{fill}" stroke="white"><title>{s}/{k}</title></rect>"#,
-                    col as f64 * PX,
-                    20.0 + row as f64 * PX
-                );
-            }
-        }
-        let c = size / 2.0;
-        let _ = writeln!(
-            svg,
-            r##"<rect x="{}" y="{}" width="{}" height="{}" fill="none" stroke="#333" stroke-width="3"/>"##,
-            c - 0.23 * PX / CELL,
-            20.0 + c - 0.21 * PX / CELL,
-            0.46 * PX / CELL,
-            0.42 * PX / CELL
-        );
-        for (i, label) in ["100%", "50%", "0%"].iter().enumerate() {
-            let r = 1.0 - i as f64 * 0.5;
-            let _ = writeln!(
-                svg,
-                r#"<rect x="{}" y="{}" width="20" height="20" fill="rgb({},{},60)"/><text x="{}" y="{}">{label}</text>"#,
-                size + 10.0,
-                30.0 + i as f64 * 30.0,
-                (220.0 * (1.0 - r)) as u8 + 30,
-                (200.0 * r) as u8 + 30,
-                size + 36.0,
-                45.0 + i as f64 * 30.0
-            );
-        }
-        svg.push_str("</svg>\n");
-        svg
+        Ok(())
     }
 }
 

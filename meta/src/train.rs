@@ -2,6 +2,7 @@
 //! curriculum advancing between iterations, a run directory, and the trained head saved with a
 //! manifest of what it was trained on.
 
+use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
@@ -89,6 +90,18 @@ pub fn train(setup: Arc<MetaSetup>, opts: &MetaTrainOptions) -> Result<(MetaMani
     let mut ppo = Ppo::new(opts.ppo.clone(), envs);
     let io = |e| MetaError::Invalid(format!("{}: {e}", opts.run_dir.display()));
     let mut run = RunDir::create(&opts.run_dir, &ppo.cfg).map_err(io)?;
+    // The curriculum schedule, one row per iteration, for `repertoire report`.
+    let schedule_path = opts.run_dir.join("curriculum.csv");
+    let mut schedule = match &curriculum {
+        Some(_) => {
+            let mut f = std::fs::File::create(&schedule_path)
+                .map_err(|e| MetaError::Invalid(format!("{}: {e}", schedule_path.display())))?;
+            writeln!(f, "iteration,episodes,zone,zone_index,success_window,advance_at")
+                .map_err(|e| MetaError::Invalid(format!("{}: {e}", schedule_path.display())))?;
+            Some(f)
+        }
+        None => None,
+    };
     let started = Instant::now();
     let mut history = Vec::new();
     while ppo.iteration < ppo.cfg.num_iterations {
@@ -101,6 +114,11 @@ pub fn train(setup: Arc<MetaSetup>, opts: &MetaTrainOptions) -> Result<(MetaMani
                     *setup.zones.write().expect("never poisoned") = c.open_zones().to_vec();
                 }
             }
+        }
+        if let (Some(c), Some(f)) = (&curriculum, &mut schedule) {
+            let rate = c.window_rate().map_or_else(String::new, |r| format!("{r:.4}"));
+            writeln!(f, "{},{},{},{},{rate},{}", m.iteration, c.episodes(), c.current(), c.current_index(), c.advance_at())
+                .map_err(|e| MetaError::Invalid(format!("{}: {e}", schedule_path.display())))?;
         }
         tracing::info!(
             iteration = m.iteration,

@@ -740,6 +740,43 @@ impl World {
         out
     }
 
+    /// The deepest interpenetration (m, 0 when none) between the character (or only its body
+    /// `body`) and prop `p` in the current contacts: how far a pose placed by hand (a seated
+    /// reference frame on a chair of another height) sinks into the prop.
+    pub fn penetration_with_prop(&self, p: usize, body: Option<usize>) -> f64 {
+        self.penetration(body, |other| self.shared.geom_prop[other] == Some(p))
+    }
+
+    /// As [`World::penetration_with_prop`], with prop `p`'s key geom only (a chair's seat).
+    pub fn penetration_with_key_geom(&self, p: usize, body: Option<usize>) -> f64 {
+        let key = self.shared.props.get(p).map(|prop| prop.key_geom);
+        self.penetration(body, |other| Some(other) == key)
+    }
+
+    fn penetration(&self, body: Option<usize>, wanted: impl Fn(usize) -> bool) -> f64 {
+        let shared = &*self.shared;
+        let mut deepest = 0.0f64;
+        for c in self.data.contact() {
+            let (g1, g2) = (c.geom[0] as usize, c.geom[1] as usize);
+            for (g, other) in [(g1, g2), (g2, g1)] {
+                let b = shared.geom_body[g];
+                let ours = body.map_or(shared.index.is_character[b], |want| b == want);
+                if ours && wanted(other) {
+                    deepest = deepest.max(-c.dist);
+                }
+            }
+        }
+        deepest
+    }
+
+    /// Raises the character by `dz` metres (its root only; props, velocities and PD targets
+    /// unchanged).
+    pub fn lift_character(&mut self, dz: f64) {
+        let r = self.shared.index.root_qpos;
+        self.data.qpos_mut()[r + 2] += dz;
+        self.data.forward();
+    }
+
     /// True when a body part other than those allowed (the feet) touches the floor.
     pub fn has_fallen(&self) -> bool {
         self.contacts().fallen

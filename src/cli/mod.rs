@@ -4,6 +4,7 @@ mod ablate;
 mod bench;
 mod clip;
 mod meta;
+mod report;
 mod run;
 mod scene;
 mod skill;
@@ -54,6 +55,12 @@ pub enum Command {
         #[arg(long)]
         plan_only: bool,
     },
+    /// Gather a run's charts (PNG + SVG) and tables into DIR/report/index.md and index.html:
+    /// learning curves, curriculum schedule, success map, transition matrices, ablation table.
+    Report {
+        /// A training run, meta-controller run, evaluation or ablation folder.
+        dir: PathBuf,
+    },
 }
 
 /// Dispatches one parsed command line.
@@ -66,6 +73,11 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Skill(cmd) => skill::run(cmd),
         Command::Meta(cmd) => meta::run(cmd),
         Command::Ablate { spec, out, plan_only } => ablate::run(&spec, &out, plan_only),
+        Command::Report { dir } => {
+            let page = report::run(&dir)?;
+            println!("report written to {}", page.display());
+            Ok(())
+        }
     }
 }
 

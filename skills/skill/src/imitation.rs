@@ -60,6 +60,8 @@ pub struct ImitationTask {
     /// Goal state: the target (world xy) and the last distance to it or to the seat.
     target: [f64; 2],
     last_distance: f64,
+    /// This episode's chair offset from the clip's seat (world x, y, yaw).
+    seat_offset: [f64; 3],
     joints: Vec<f64>,
 }
 
@@ -78,6 +80,7 @@ impl ImitationTask {
             start_frame: 0,
             target: [0.0; 2],
             last_distance: 0.0,
+            seat_offset: [0.0; 3],
             joints: vec![0.0; dof],
         }
     }
@@ -123,7 +126,38 @@ impl ImitationTask {
     fn place_seat(&self, world: &mut World) {
         if let Some((prop, [sx, sy, syaw])) = self.settings.seat {
             let [x, y] = self.to_world([sx, sy]);
-            world.move_prop(prop, x, y, wrap_angle(syaw + self.yaw)).expect("the seat prop is validated");
+            let [dx, dy, dyaw] = self.seat_offset;
+            world.move_prop(prop, x + dx, y + dy, wrap_angle(syaw + self.yaw + dyaw)).expect("the seat prop is validated");
+        }
+    }
+
+    /// Starts an episode free of the chair: a pose placed by hand can sink into it (a seated
+    /// frame on a lower seat than the clip's, a standing leg inside a chair the jitter moved)
+    /// and MuJoCo would shoot it out. A low (seated) frame whose pelvis sinks into the seat
+    /// (the key geom) is lifted onto it; a standing frame that overlaps the chair pushes the chair back along
+    /// its own −x, at most 20 cm.
+    fn separate_from_seat(&mut self, world: &mut World, prop: usize) {
+        let r = &self.settings.reference;
+        let (lo, hi) = r.height.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &h| (a.min(h), b.max(h)));
+        let seated = hi > lo && (hi - r.height[self.phase]) / (hi - lo) > 0.5;
+        if seated {
+            let pelvis = world.model().index.pelvis;
+            for _ in 0..4 {
+                let depth = world.penetration_with_key_geom(prop, Some(pelvis));
+                if depth <= 0.002 {
+                    break;
+                }
+                world.lift_character(depth + 0.002);
+            }
+            return;
+        }
+        for _ in 0..10 {
+            if world.penetration_with_prop(prop, None) <= 0.002 {
+                break;
+            }
+            let pl = world.placements()[prop];
+            let (s, c) = pl.yaw.sin_cos();
+            world.move_prop(prop, pl.pos[0] - 0.02 * c, pl.pos[1] - 0.02 * s, pl.yaw).expect("the seat prop is validated");
         }
     }
 
@@ -153,6 +187,7 @@ impl ImitationTask {
     /// frame's velocities, and makes `f` the current phase (tests, viewers).
     pub fn place_at_frame(&mut self, world: &mut World, f: usize, x: f64, y: f64, heading: f64) {
         self.place_reference(world, f, x, y, heading);
+        self.seat_offset = [0.0; 3];
         self.place_seat(world);
         self.start_frame = f;
         self.start_heading = world.heading();
@@ -313,7 +348,23 @@ impl Task for ImitationTask {
                 self.place_reference(world, f, x, y, heading)
             }
         }
+        self.seat_offset = match settings.goal {
+            Goal::Seat { jitter_m, jitter_deg, .. } if jitter_m > 0.0 || jitter_deg > 0.0 => {
+                // Full jitter while standing, none once seated: the rest of the clip must be
+                // able to make up the difference.
+                let (lo, hi) = r.height.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &h| (a.min(h), b.max(h)));
+                let s = if hi > lo { ((r.height[self.phase] - lo) / (hi - lo)).clamp(0.0, 1.0) } else { 1.0 };
+                let radius = s * jitter_m * rng.random_range(0.0f64..=1.0).sqrt();
+                let angle = rng.random_range(-std::f64::consts::PI..std::f64::consts::PI);
+                let turn = s * jitter_deg.to_radians() * rng.random_range(-1.0f64..=1.0);
+                [radius * angle.cos(), radius * angle.sin(), turn]
+            }
+            _ => [0.0; 3],
+        };
         self.place_seat(world);
+        if let Some((prop, _)) = settings.seat {
+            self.separate_from_seat(world, prop);
+        }
         self.cycles = 0;
         self.start_frame = self.phase;
         self.start_heading = world.heading();

@@ -116,6 +116,28 @@ impl Reference {
         Ok(r)
     }
 
+    /// Raises the root by `dz · s` with `s` running from 0 at the clip's highest pelvis to 1
+    /// at its lowest (velocities follow), so a seated clip rests on a higher seat while the
+    /// standing part is unchanged. Joint angles and pelvis-relative end effectors stay as they
+    /// are.
+    pub fn lift_low(&mut self, dz: f64) {
+        let (lo, hi) = self.height.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &h| (a.min(h), b.max(h)));
+        if !(hi > lo) || dz == 0.0 {
+            return;
+        }
+        let lift: Vec<f64> = self.height.iter().map(|&h| dz * ((hi - h) / (hi - lo)).clamp(0.0, 1.0)).collect();
+        let n = lift.len();
+        for f in 0..n {
+            self.root_pos[f][2] += lift[f];
+            self.height[f] += lift[f];
+            // Central differences (one-sided at the ends) of the added height.
+            let (a, b) = (f.saturating_sub(1), (f + 1).min(n - 1));
+            let vz = if b > a { (lift[b] - lift[a]) / ((b - a) as f64 * self.dt) } else { 0.0 };
+            self.root_qvel[f][2] += vz;
+            self.velocity[f][2] += vz;
+        }
+    }
+
     /// Number of frames.
     pub fn frames(&self) -> usize {
         self.root_pos.len()

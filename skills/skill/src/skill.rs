@@ -85,7 +85,17 @@ impl SkillSetup {
         }
         clip.looping = s.clip.looping;
         let control_hz = f64::from(model.scenario.scenario.rates.control_hz);
-        let reference = Reference::new(&clip, &body, control_hz)?;
+        let mut reference = Reference::new(&clip, &body, control_hz)?;
+        if s.clip.seat_lift_m != 0.0 {
+            if !s.clip.seat_lift_m.is_finite() || s.clip.seat_lift_m.abs() > 0.5 {
+                return Err(SkillError::Invalid(format!(
+                    "{}: clip seat_lift_m = {} is outside ±0.5 m",
+                    spec.path.display(),
+                    s.clip.seat_lift_m
+                )));
+            }
+            reference.lift_low(s.clip.seat_lift_m);
+        }
 
         let seat = match &s.goal {
             Goal::Seat { prop, .. } => {
@@ -103,7 +113,8 @@ impl SkillSetup {
                     .enumerate()
                     .fold((0, f64::INFINITY), |best, (i, &h)| if h < best.1 { (i, h) } else { best });
                 let p = reference.root_pos[f];
-                Some((id, [p[0], p[1], reference.heading[f]]))
+                let (h, forward) = (reference.heading[f], goal_forward(&s.goal));
+                Some((id, [p[0] + forward * h.cos(), p[1] + forward * h.sin(), h]))
             }
             _ => None,
         };
@@ -167,5 +178,13 @@ impl SkillSetup {
             origin: self.clip.origin.clone(),
             frames: self.settings.reference.frames(),
         }
+    }
+}
+
+/// The seat's offset in front of the clip's seated pelvis.
+fn goal_forward(goal: &Goal) -> f64 {
+    match goal {
+        Goal::Seat { forward_m, .. } => *forward_m,
+        _ => 0.0,
     }
 }

@@ -29,6 +29,11 @@ pub struct ClipRef {
     /// Treat the clip as a cycle whose phase wraps.
     #[serde(default)]
     pub looping: bool,
+    /// Raise the root by up to this much (m), in proportion to how low the clip sits: fully
+    /// at its lowest frame, not at all at its highest. For a sit clip whose actor sat lower
+    /// than this body's pelvis can rest on the scene's chair.
+    #[serde(default)]
+    pub seat_lift_m: f64,
 }
 
 /// Weight and sharpness of one imitation term: `weight · exp(−scale · error²)`.
@@ -101,11 +106,26 @@ pub enum Goal {
     /// Sit: the chair `prop` is placed under the clip's seated pelvis; reward
     /// `weight / (1 + exp(10 · V))` with `V` the rate of change of the pelvis–seat-centre
     /// distance, or `weight` while the pelvis touches the seat.
+    ///
+    /// Each episode moves the chair off that spot by up to `jitter_m` (uniform in a disc) and
+    /// turns it by up to ±`jitter_deg`, scaled by how far the start frame is from seated (full
+    /// when standing, none when already seated), so the policy learns to sit on a chair that is
+    /// not exactly where the clip's was, reading its pose from the observation.
     Seat {
         /// Weight.
         weight: f32,
         /// The chair's prop name in the skill's scene.
         prop: String,
+        /// Largest chair offset from the clip's seat (m).
+        #[serde(default)]
+        jitter_m: f64,
+        /// Largest chair turn from the clip's seat (degrees either way).
+        #[serde(default)]
+        jitter_deg: f64,
+        /// How far in front of the clip's seated pelvis the seat centre lies (m, along the
+        /// chair's facing): where the chair's legs and back clear the clip's legs and torso.
+        #[serde(default)]
+        forward_m: f64,
     },
 }
 

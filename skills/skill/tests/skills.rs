@@ -210,3 +210,52 @@ fn bad_specs_are_refused_with_the_place() {
     let err = SkillSetup::new(spec, &dir).err().expect("missing clip").to_string();
     assert!(err.contains("nope.txt") && err.contains("does not exist"), "{err}");
 }
+
+#[test]
+fn sit_episodes_start_clear_of_the_chair_with_the_seat_jittered_and_the_seated_clip_lifted() {
+    let s = setup("sit.ron", &temp("sit-starts"));
+    let r = &s.settings.reference;
+    let (prop, seat) = s.settings.seat.expect("sit has a seat");
+    // The seated frames are raised by seat_lift_m (0.09 m at the lowest frame), the standing
+    // ones are not.
+    let spec = SpecFile::load(&specs().join("sit.ron")).unwrap();
+    let mut plain = spec.clone();
+    plain.spec.clip.seat_lift_m = 0.0;
+    let p = SkillSetup::new(plain, &temp("sit-plain")).unwrap();
+    let pr = &p.settings.reference;
+    let lowest = (0..pr.frames()).min_by(|&a, &b| pr.height[a].total_cmp(&pr.height[b])).unwrap();
+    let highest = (0..pr.frames()).max_by(|&a, &b| pr.height[a].total_cmp(&pr.height[b])).unwrap();
+    assert!((r.height[lowest] - pr.height[lowest] - 0.09).abs() < 1e-9);
+    assert!((r.height[highest] - pr.height[highest]).abs() < 1e-9);
+    assert_eq!(r.joints, pr.joints, "lifting leaves the joint angles alone");
+
+    let mut env = s.env();
+    let mut rng = EnvRng::seed_from_u64(5);
+    let pelvis = env.world().model().index.pelvis;
+    let (mut seated, mut moved) = (0, 0);
+    let mut obs = vec![0.0; env.obs_dim()];
+    for _ in 0..40 {
+        env.reset(&mut rng, &mut obs);
+        let task = env.task();
+        let f = task.phase();
+        let world = env.world();
+        let depth = world.penetration_with_key_geom(prop, Some(pelvis));
+        assert!(depth < 0.005, "start frame {f}: the pelvis sinks {depth:.3} m into the seat");
+        // Where the clip's seat would be for this start (no jitter) versus where it is.
+        let pl = world.placements()[prop];
+        let frame = world.pelvis_frame();
+        let local = repertoire_skill::reference::to_heading(frame.yaw(), [pl.pos[0] - frame.pos[0], pl.pos[1] - frame.pos[1], 0.0]);
+        let expected = repertoire_skill::reference::to_heading(
+            r.heading[f],
+            [seat[0] - r.root_pos[f][0], seat[1] - r.root_pos[f][1], 0.0],
+        );
+        let off = ((local[0] - expected[0]).powi(2) + (local[1] - expected[1]).powi(2)).sqrt();
+        assert!(off < 0.25 + 0.2 + 1e-6, "start frame {f}: chair {off:.3} m from the clip's seat (jitter 0.25, push-back 0.2)");
+        if r.height[f] < 0.65 {
+            seated += 1;
+        } else if off > 0.02 {
+            moved += 1;
+        }
+    }
+    assert!(seated > 0 && moved > 0, "40 starts cover seated frames ({seated}) and jittered standing ones ({moved})");
+}
