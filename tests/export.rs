@@ -1,0 +1,82 @@
+//! Exports of a real rollout (the committed walk skill, recorded by `skill play`): the BVH
+//! re-imports through the project's own parser with the same per-body rotations as MuJoCo's
+//! kinematics of the recorded qpos, the same frame count and frame time; the .npy holds qpos.
+
+mod common;
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+use repertoire::scenes::{Recording, World};
+use repertoire_clip::export::rotation_from_y_up;
+use repertoire_mocap::{BvhOptions, LengthUnit, Quat, read_bvh};
+
+fn repertoire(args: &[&str]) -> Output {
+    let out = Command::new(env!("CARGO_BIN_EXE_repertoire")).args(args).output().expect("run repertoire");
+    assert!(out.status.success(), "{args:?}: {}", String::from_utf8_lossy(&out.stderr));
+    out
+}
+
+fn q(v: [f64; 4]) -> Quat {
+    Quat::new(v[0], v[1], v[2], v[3])
+}
+
+#[test]
+fn bvh_and_npy_of_a_walk_round_trip() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let dir = common::temp_dir("export");
+    let rec_path = dir.join("walk.rec");
+    let spec = root.join("skills/skill/specs/walk.ron");
+    let lib = root.join("skills/library");
+    repertoire(
+        &["skill", "play", spec.to_str().unwrap(), "--record", rec_path.to_str().unwrap()]
+            .into_iter()
+            .chain(["--library", lib.to_str().unwrap(), "--seed", "4"])
+            .collect::<Vec<_>>(),
+    );
+    let (bvh, npy) = (dir.join("walk.bvh"), dir.join("walk.npy"));
+    repertoire(&["export", rec_path.to_str().unwrap(), "--bvh", bvh.to_str().unwrap(), "--npy", npy.to_str().unwrap()]);
+
+    let rec = Recording::load(&rec_path).expect("recording");
+    assert!(rec.frames() > 100, "{} frames", rec.frames());
+    let clip = read_bvh(&bvh, &BvhOptions { unit: Some(LengthUnit::Metre), ..Default::default() }).expect("parse BVH");
+    let (sk, motion) = (&clip.skeleton, &clip.motion);
+    assert_eq!(motion.frame_count(), rec.frames());
+    assert!((motion.frame_time - 1.0 / rec.header.control_hz).abs() < 1e-8, "frame time {}", motion.frame_time);
+    let character: Vec<usize> = rec.header.character();
+    assert_eq!(sk.len(), character.len());
+
+    // MuJoCo's own kinematics of each recorded qpos: every body's rotation in its parent.
+    let model = common::default_model();
+    let mut world: World = model.new_world();
+    let zeros = vec![0.0; world.data().qvel().len()];
+    let mut worst: f64 = 0.0;
+    for f in 0..rec.frames() {
+        world.set_state(rec.qpos_at(f), &zeros).expect("recorded qpos fits the scene");
+        let xquat = world.data().xquat();
+        let xpos = world.data().xpos();
+        let frame = motion.frame(f).expect("frame");
+        for (k, &b) in character.iter().enumerate() {
+            let joint = &sk.joints[k];
+            assert_eq!(joint.name, rec.header.bodies[b].name);
+            let body = b + 1; // the recording leaves the world body out
+            let parent = rec.header.bodies[b].parent.map_or(0, |p| p + 1);
+            let want = if k == 0 { q(xquat[body]) } else { q(xquat[parent]).conjugate() * q(xquat[body]) };
+            let got = rotation_from_y_up(frame.rotations[k]);
+            worst = worst.max(got.angle_to(want));
+        }
+        let t = frame.translations[0];
+        let p = xpos[model.index.pelvis];
+        let err = ((t.x - p[0]).powi(2) + (t.y - p[2]).powi(2) + (t.z + p[1]).powi(2)).sqrt();
+        assert!(err < 1e-5, "frame {f}: root position off by {err} m");
+    }
+    assert!(worst < 1e-4, "a joint rotation differs by {worst} rad");
+
+    let bytes = std::fs::read(&npy).expect("npy");
+    assert_eq!(&bytes[..8], b"\x93NUMPY\x01\x00");
+    let header_len = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+    assert_eq!((10 + header_len) % 64, 0);
+    let (rows, cols, values) = repertoire_clip::io::parse_npy(&bytes).expect("valid npy");
+    assert_eq!((rows, cols), (rec.frames(), rec.header.nq));
+    assert_eq!(values, rec.qpos);
+}
