@@ -113,3 +113,27 @@ pub fn export(args: ExportArgs) -> Result<()> {
     }
     Ok(())
 }
+
+/// Writes a replay page beside each recording when three.js is installed; otherwise says how
+/// to get one. Returns the pages written.
+pub fn pages_beside(recs: &[PathBuf]) -> Vec<PathBuf> {
+    let web = web_dir(None);
+    if !three_build_dir(&web).exists() {
+        if !recs.is_empty() {
+            println!(
+                "(no replay pages: three.js is not installed in {}; run scripts/setup.sh, then `repertoire replay`)",
+                web.display()
+            );
+        }
+        return Vec::new();
+    }
+    let mut pages = Vec::new();
+    for rec in recs {
+        let page = rec.with_extension("html");
+        match replay_file(rec, &page, &web) {
+            Ok(_) => pages.push(page),
+            Err(e) => println!("no replay page for {}: {e:#}", rec.display()),
+        }
+    }
+    pages
+}
