@@ -80,3 +80,25 @@ fn bvh_and_npy_of_a_walk_round_trip() {
     assert_eq!((rows, cols), (rec.frames(), rec.header.nq));
     assert_eq!(values, rec.qpos);
 }
+
+#[test]
+fn clip_play_records_the_clip_frame_by_frame() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let clip = root.join("third_party/clips/deepmimic/walk_forward.txt");
+    assert!(clip.exists(), "{} is missing: run scripts/setup.sh (the clip pack)", clip.display());
+    let dir = common::temp_dir("clip-play");
+    let (rec_path, bvh) = (dir.join("walk.rec"), dir.join("walk.bvh"));
+    repertoire(&["clip", "play", clip.to_str().unwrap(), "--record", rec_path.to_str().unwrap()]);
+    let rec = Recording::load(&rec_path).expect("recording");
+    assert!(rec.frames() > 30 && rec.header.props.is_empty() && rec.header.ghost.is_none());
+    assert!(rec.skill.iter().all(|&s| s == -1));
+    for f in [0, rec.frames() / 2, rec.frames() - 1] {
+        let (p, _) = rec.pose(f, rec.header.root);
+        let q = rec.qpos_at(f);
+        assert!((0..3).all(|k| (p[k] - q[k]).abs() < 1e-5), "frame {f}: pelvis {p:?} vs root qpos {:?}", &q[..3]);
+        assert!((f64::from(rec.phase[f]) - f as f64).abs() < 1e-9);
+    }
+    repertoire(&["export", rec_path.to_str().unwrap(), "--bvh", bvh.to_str().unwrap()]);
+    let back = read_bvh(&bvh, &BvhOptions { unit: Some(LengthUnit::Metre), ..Default::default() }).expect("parse");
+    assert_eq!(back.motion.frame_count(), rec.frames());
+}

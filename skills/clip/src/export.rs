@@ -117,13 +117,18 @@ pub fn to_bvh(rec: &Recording) -> Result<(Skeleton, Motion, Vec<String>)> {
         }
         joints.push(joint);
     }
-    // End sites for leaves: past the body's first off-centre geom, or a short way along the bone.
+    // End sites for leaves: past the body's farthest geom centre, or a short way along the bone.
     for i in 0..joints.len() {
         if joints.iter().any(|j| j.parent == Some(i)) {
             continue;
         }
         let b = bodies[i];
-        let geom = h.geoms.iter().find(|g| g.body == Some(b) && g.pos.iter().any(|v| v.abs() > 1e-6));
+        let norm = |p: &[f64; 3]| p.iter().map(|v| v * v).sum::<f64>();
+        let geom = h
+            .geoms
+            .iter()
+            .filter(|g| g.body == Some(b) && norm(&g.pos) > 1e-12)
+            .max_by(|a, b| norm(&a.pos).total_cmp(&norm(&b.pos)));
         joints[i].end_site = Some(match geom {
             Some(g) => point_to_y_up(g.pos.map(|v| 2.0 * v)),
             None => {
