@@ -1,5 +1,6 @@
-//! The replay page in a real browser: a short real rollout (the committed sit skill, chair and
-//! reference ghost) is recorded, written as HTML by the CLI, and opened in headless Chromium
+//! The replay page in a real browser: a short real rollout (the committed sit skill started from
+//! a turn's end pose, with the chair and the reference ghost) is recorded, written as HTML by
+//! the CLI, and opened in headless Chromium
 //! (Debian's `chromium`, driven by `playwright-core`; both installed by `scripts/setup.sh`).
 //! The page must draw its canvas, advance its timeline and log no error. The screenshot is
 //! kept as `target/test-artifacts/replay.png`.
@@ -37,6 +38,7 @@ fn replay_page_draws_plays_and_logs_no_error() {
     let spec = root.join("skills/skill/specs/sit.ron");
     let out = Command::new(env!("CARGO_BIN_EXE_repertoire"))
         .args(["skill", "play", spec.to_str().unwrap(), "--record", rec.to_str().unwrap()])
+        .args(["--from", "turn_left,turn_right", "--seed", "1"])
         .args(["--html", html.to_str().unwrap(), "--library", root.join("skills/library").to_str().unwrap()])
         .output()
         .expect("run repertoire");

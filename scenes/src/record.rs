@@ -330,9 +330,13 @@ impl Recorder {
         self.rec.time.is_empty()
     }
 
-    /// Records `world` as it is now, with the rollout's annotation.
+    /// Records `world` as it is now, with the rollout's annotation. A diverged state (a NaN or
+    /// infinite qpos) is not recorded: the recording ends at the last finite frame.
     pub fn record(&mut self, world: &World, a: &Annotation<'_>) {
         let d = world.data();
+        if !d.time().is_finite() || d.qpos().iter().any(|v| !v.is_finite()) {
+            return;
+        }
         let r = &mut self.rec;
         r.time.push(d.time());
         r.qpos.extend_from_slice(d.qpos());
@@ -569,8 +573,16 @@ impl Recording {
         if let Some(k) = self.qpos.iter().position(|v| !v.is_finite()) {
             return Err(format!("frame {}: qpos value {} is not a finite number", frame_of(k, h.nq), k % h.nq));
         }
-        if let Some(k) = self.poses.iter().chain(&self.ghost).position(|v| !v.is_finite()) {
-            return Err(format!("a body pose is not a finite number (value {k})"));
+        if let Some(k) = self.poses.iter().position(|v| !v.is_finite()) {
+            let b = (k / POSE) % nb.max(1);
+            return Err(format!(
+                "frame {}: the pose of body `{}` is not finite",
+                frame_of(k, nb * POSE),
+                h.bodies[b].name
+            ));
+        }
+        if let Some(k) = self.ghost.iter().position(|v| !v.is_finite()) {
+            return Err(format!("frame {}: a ghost pose is not finite", frame_of(k, h.ghost_bodies() * POSE)));
         }
         if let Some(k) = self.skill.iter().position(|&s| s < -1 || s >= h.skills.len() as i32) {
             return Err(format!(

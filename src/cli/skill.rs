@@ -53,9 +53,10 @@ pub enum SkillCommand {
         /// Seed of the episode.
         #[arg(long, default_value_t = 1)]
         seed: u64,
-        /// Start from a predecessor's end pose (the spec's Pools) instead of the clip start.
-        #[arg(long)]
-        from_pool: bool,
+        /// Start from an end pose of one of these predecessors (their `skill eval` pools)
+        /// instead of the clip start.
+        #[arg(long, value_delimiter = ',')]
+        from: Vec<String>,
         /// The folder holding node_modules/three (for --html).
         #[arg(long)]
         web: Option<PathBuf>,
@@ -125,8 +126,8 @@ pub fn run(cmd: SkillCommand) -> Result<()> {
         SkillCommand::Finetune { spec, from, fraction, common } => {
             train_cmd(&spec, Some((from, fraction)), common, command)
         }
-        SkillCommand::Play { spec, record, html, library, seed, from_pool, web } => {
-            play_cmd(&spec, &record, html.as_deref(), &library, seed, from_pool, web.as_deref())
+        SkillCommand::Play { spec, record, html, library, seed, from, web } => {
+            play_cmd(&spec, &record, html.as_deref(), &library, seed, from, web.as_deref())
         }
         SkillCommand::Eval { spec, library, trials, batch, seed, from, no_pool, pool_size } => {
             eval_cmd(&spec, &library, trials, batch, seed, from, no_pool, pool_size)
@@ -251,22 +252,26 @@ fn play_cmd(
     html: Option<&Path>,
     library: &Path,
     seed: u64,
-    from_pool: bool,
+    from: Vec<String>,
     web: Option<&Path>,
 ) -> Result<()> {
-    let spec = SpecFile::load(spec_path)?;
+    let mut spec = SpecFile::load(spec_path)?;
+    let start = if from.is_empty() { StartFrom::ClipStart } else { StartFrom::Predecessors };
+    if !from.is_empty() {
+        spec.spec.init = Init::Pools { from, fraction: 1.0 };
+    }
     let setup = SkillSetup::new(spec, library)?;
     let name = setup.spec.spec.name.clone();
     let mut skill = library::load(library, &name)?;
-    let start = if from_pool { StartFrom::Predecessors } else { StartFrom::ClipStart };
     let played = repertoire_skill::play::play(&setup, &mut skill, start, seed)?;
     played.recording.save(record)?;
     let size = std::fs::metadata(record).map(|m| m.len()).unwrap_or(0);
     println!(
-        "{name}: {} steps ({:.2} s), {}, return {:.2}; recorded to {} ({:.2} MB)",
+        "{name}: {} steps ({:.2} s), {}{}, return {:.2}; recorded to {} ({:.2} MB)",
         played.steps,
         f64::from(played.steps) * setup.model.control_dt(),
         if played.fell { "fell" } else { "did not fall" },
+        if played.on_seat { ", on the seat" } else { "" },
         played.episode_return,
         record.display(),
         size as f64 / 1e6

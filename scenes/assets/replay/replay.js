@@ -165,7 +165,13 @@ window.addEventListener('keydown', (e) => {
 });
 
 // A hand-written orbit: drag to turn, wheel to zoom, around a target that follows the pelvis.
-const orbit = { azimuth: -Math.PI / 2 - 0.6, elevation: 0.35, distance: 4.2, target: new THREE.Vector3(0, 0, 0.9) };
+// Start beside the character's right shoulder, 60° off its heading at the first frame.
+const startYaw = (() => {
+  const k = H.root * P;
+  const [w, x, y, z] = [poses[k + 3], poses[k + 4], poses[k + 5], poses[k + 6]];
+  return Math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z));
+})();
+const orbit = { azimuth: startYaw - Math.PI / 3, elevation: 0.3, distance: 4.2, target: new THREE.Vector3(0, 0, 0.9) };
 let drag = null;
 renderer.domElement.addEventListener('pointerdown', (e) => { drag = { x: e.clientX, y: e.clientY }; });
 window.addEventListener('pointerup', () => { drag = null; });

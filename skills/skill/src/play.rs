@@ -24,6 +24,8 @@ pub struct Played {
     pub steps: u32,
     /// Whether it ended in a fall.
     pub fell: bool,
+    /// Whether the pelvis was on the seat at the end (sit).
+    pub on_seat: bool,
     /// Undiscounted return.
     pub episode_return: f64,
 }
@@ -96,6 +98,7 @@ pub fn play(setup: &SkillSetup, skill: &mut LibrarySkill, start: StartFrom, seed
                 recording: recorder.finish(),
                 steps: env.steps(),
                 fell: out.terminated,
+                on_seat: out.terms[5] > 0.5,
                 episode_return,
             });
         }
