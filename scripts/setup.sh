@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Sets up a fresh machine for Repertoire, from PyPI only (the only network access):
+# Sets up a fresh machine for Repertoire, from package registries only (PyPI, npm, Debian):
 #  1. the MuJoCo 3.17.0 C library from the `mujoco` wheel, into third_party/mujoco/lib, which
 #     .cargo/config.toml points mujoco-rs at;
 #  2. the clip pack, into third_party/clips: the DeepMimic-format walk and turn cycles shipped in

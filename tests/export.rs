@@ -102,3 +102,41 @@ fn clip_play_records_the_clip_frame_by_frame() {
     let back = read_bvh(&bvh, &BvhOptions { unit: Some(LengthUnit::Metre), ..Default::default() }).expect("parse");
     assert_eq!(back.motion.frame_count(), rec.frames());
 }
+
+#[test]
+fn replay_and_export_refuse_bad_input_with_the_file_named() {
+    let dir = common::temp_dir("replay-bad");
+    let run = |args: &[&str]| Command::new(env!("CARGO_BIN_EXE_repertoire")).args(args).output().expect("run");
+    let refused = |out: Output, needles: &[&str]| {
+        let err = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert!(!out.status.success(), "accepted: {err}");
+        assert!(!err.contains("panicked"), "panicked: {err}");
+        for n in needles {
+            assert!(err.contains(n), "`{n}` not in: {err}");
+        }
+    };
+    let garbage = common::write(&dir, "garbage.rec", "HIERARCHY\nROOT hips\n");
+    let g = garbage.to_str().unwrap();
+    refused(
+        run(&["replay", g, "-o", dir.join("g.html").to_str().unwrap()]),
+        &["garbage.rec", "not a Repertoire recording"],
+    );
+    refused(
+        run(&["export", g, "--npy", dir.join("g.npy").to_str().unwrap()]),
+        &["garbage.rec", "not a Repertoire recording"],
+    );
+    refused(run(&["replay", dir.join("none.rec").to_str().unwrap()]), &["none.rec", "cannot read"]);
+    let empty = dir.join("empty");
+    std::fs::create_dir_all(&empty).unwrap();
+    refused(run(&["replay", empty.to_str().unwrap()]), &["empty", "no recordings"]);
+    refused(run(&["replay", dir.to_str().unwrap()]), &["garbage.rec", "not a Repertoire recording"]);
+
+    // A real recording, but no three.js where --web points: the message says to run setup.
+    let clip = Path::new(env!("CARGO_MANIFEST_DIR")).join("third_party/clips/deepmimic/walk_forward.txt");
+    let rec = dir.join("walk.rec");
+    repertoire(&["clip", "play", clip.to_str().unwrap(), "--record", rec.to_str().unwrap()]);
+    let out = run(&["replay", rec.to_str().unwrap(), "--web", dir.join("no-web").to_str().unwrap()]);
+    refused(out, &["three.core.js", "scripts/setup.sh"]);
+    assert!(!dir.join("walk.html").exists(), "no half page is left behind");
+    refused(run(&["export", rec.to_str().unwrap()]), &["nothing to export"]);
+}
