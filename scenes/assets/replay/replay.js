@@ -297,7 +297,8 @@ function frameLoop(now) {
   drawStrip(f);
   const k = (f * NB + H.root) * P;
   rootTarget.set(poses[k], poses[k + 1], Math.max(0.5, poses[k + 2]));
-  if (follow) orbit.target.lerp(rootTarget, shown === f && hook.drawn > 0 ? 0.1 : 1);
+  // Ease towards the pelvis at the same pace whatever the frame rate; jump on the first draw.
+  if (follow) orbit.target.lerp(rootTarget, hook.drawn > 0 ? 1 - Math.exp(-8 * dt) : 1);
   const ce = Math.cos(orbit.elevation);
   camera.position.set(
     orbit.target.x + orbit.distance * ce * Math.cos(orbit.azimuth),
