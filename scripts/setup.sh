@@ -1,11 +1,15 @@
 #!/usr/bin/env bash
-# Sets up a fresh machine for Repertoire, from PyPI only (the only network access):
+# Sets up a fresh machine for Repertoire, from package registries only (PyPI, npm, Debian):
 #  1. the MuJoCo 3.17.0 C library from the `mujoco` wheel, into third_party/mujoco/lib, which
 #     .cargo/config.toml points mujoco-rs at;
 #  2. the clip pack, into third_party/clips: the DeepMimic-format walk and turn cycles shipped in
 #     the `pybullet` 3.2.7 wheel (pybullet_data/data/motions) and the sit-down/stand-up BVH in the
 #     `bvhtoolbox` 0.1.3 sdist (tests/example_files), each checked against its SHA-256.
-# Re-running it is a no-op once both are in place.
+#  3. the replay page's npm packages (three.js, inlined into every replay page; playwright-core,
+#     which drives the browser test), by `npm ci` in scenes/web from its committed lock file;
+#  4. Debian's `chromium` for that test (apt-get, as root or through sudo), if /usr/bin/chromium is
+#     missing.
+# Re-running it is a no-op once everything is in place.
 set -euo pipefail
 
 MUJOCO_VERSION=3.17.0
@@ -14,7 +18,37 @@ lib_dir="$root/third_party/mujoco/lib"
 lib="$lib_dir/libmujoco.so.$MUJOCO_VERSION"
 
 clips_dir="$root/third_party/clips"
+web_dir="$root/scenes/web"
+
+# Steps 3 and 4. Without npm or a way to install chromium this says what to do and goes on: only
+# the replay pages and their browser test need them.
+web_and_browser() {
+  local stamp="$web_dir/node_modules/.setup-lock"
+  if ! cmp -s "$web_dir/package-lock.json" "$stamp" 2>/dev/null; then
+    if command -v npm >/dev/null; then
+      echo "setup: installing the replay page's npm packages in scenes/web (npm ci)" >&2
+      (cd "$web_dir" && npm ci --no-audit --no-fund --loglevel=error >&2)
+      cp "$web_dir/package-lock.json" "$stamp"
+    else
+      echo "setup: npm is missing (install Node.js 18+ and npm), so replay pages and their browser test cannot work" >&2
+    fi
+  fi
+  if [ ! -x "${CHROMIUM:-/usr/bin/chromium}" ]; then
+    local sudo=""
+    [ "$(id -u)" = 0 ] || { command -v sudo >/dev/null && sudo -n true 2>/dev/null && sudo="sudo"; } || true
+    if command -v apt-get >/dev/null && { [ "$(id -u)" = 0 ] || [ -n "$sudo" ]; }; then
+      echo "setup: installing Debian's chromium for the replay browser test (apt-get install chromium)" >&2
+      $sudo apt-get update -qq >&2
+      DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq chromium >&2
+    else
+      echo "setup: ${CHROMIUM:-/usr/bin/chromium} is missing and cannot be installed here (needs apt-get as root or sudo);" \
+        "install chromium, or set CHROMIUM to a Chromium binary, for the replay browser test" >&2
+    fi
+  fi
+}
+
 if [ -f "$lib" ] && [ -L "$lib_dir/libmujoco.so" ] && [ -f "$clips_dir/.complete" ]; then
+  web_and_browser
   exit 0
 fi
 
@@ -100,3 +134,5 @@ PY
   touch "$clips_dir/.complete"
   echo "setup: clip pack installed in third_party/clips" >&2
 fi
+
+web_and_browser

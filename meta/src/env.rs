@@ -20,7 +20,9 @@ use repertoire_humanoid::ActionMap;
 use repertoire_learn::acting::ActingPolicy;
 use repertoire_learn::env::{Env, EnvRng, MAX_TERMS, StepOutcome};
 use repertoire_scenes::scenario::Task as ScenarioTask;
-use repertoire_scenes::{Feature, ObservationLayout, World, WorldModel};
+use repertoire_scenes::{
+    Annotation, Feature, ObservationLayout, RecordOptions, Recorder, Recording, World, WorldModel,
+};
 use repertoire_skill::library::{self, LibrarySkill};
 use repertoire_skill::pool::Pool;
 use repertoire_skill::reference::to_heading;
@@ -164,7 +166,12 @@ pub struct MetaEnv {
     pub zone: String,
     /// Skills chosen this episode, in order (transition matrices).
     pub chosen: Vec<usize>,
+    /// When set, each episode is recorded at the control rate (see [`MetaEnv::record_episodes`]).
+    record: Option<(RecordOptions, Recorder)>,
 }
+
+/// Names of the terms a recorded meta episode carries per control tick.
+pub const RECORDED_TERMS: [&str; 4] = ["seat_distance", "on_seat", "seat_contact_s", "min_distance"];
 
 impl MetaEnv {
     /// A meta environment over `setup`.
@@ -191,7 +198,52 @@ impl MetaEnv {
             start: (0.0, 0.0, 0.0),
             zone: String::new(),
             chosen: Vec::new(),
+            record: None,
             setup,
+        }
+    }
+
+    /// Records every following episode (from its reset, one frame per control tick, with the
+    /// active skill and its phase); `title` heads each recording. [`MetaEnv::recording`] hands
+    /// out the current one.
+    pub fn record_episodes(&mut self, title: impl Into<String>) {
+        let options = RecordOptions {
+            title: title.into(),
+            skills: self.setup.skills.iter().map(|s| s.name.clone()).collect(),
+            terms: RECORDED_TERMS.iter().map(|s| s.to_string()).collect(),
+            phase: "skill frame".into(),
+            ghost: None,
+            capacity: (self.setup.time_limit_s * f64::from(self.setup.model.scenario.scenario.rates.control_hz))
+                as usize
+                + 2,
+        };
+        let recorder = Recorder::new(&self.setup.model, options.clone());
+        self.record = Some((options, recorder));
+    }
+
+    /// The recording of the current episode so far (when recording), leaving an empty one.
+    pub fn recording(&mut self) -> Option<Recording> {
+        let (options, recorder) = self.record.as_mut()?;
+        let fresh = Recorder::new(&self.setup.model, RecordOptions { capacity: 0, ..options.clone() });
+        Some(std::mem::replace(recorder, fresh).finish())
+    }
+
+    /// Records the current state (when recording).
+    fn record_frame(&mut self) {
+        if self.record.is_none() {
+            return;
+        }
+        let on = self.world.contacts().pelvis_on_prop(self.setup.seat);
+        let control_dt = 1.0 / f64::from(self.setup.model.scenario.scenario.rates.control_hz);
+        let terms = [
+            self.seat_distance() as f32,
+            f32::from(u8::from(on)),
+            (f64::from(self.judge.streak()) * control_dt) as f32,
+            self.judge.min_distance as f32,
+        ];
+        let a = Annotation { skill: self.current, phase: self.phase as f64, terms: &terms, ghost_qpos: None };
+        if let Some((_, recorder)) = self.record.as_mut() {
+            recorder.record(&self.world, &a);
         }
     }
 
@@ -304,6 +356,10 @@ impl Env for MetaEnv {
         }
         self.last_distance = self.seat_distance();
         self.judge.tick(false, self.last_distance);
+        if let Some((options, recorder)) = self.record.as_mut() {
+            *recorder = Recorder::new(&self.setup.model, options.clone());
+        }
+        self.record_frame();
         self.observe(obs);
     }
 
@@ -344,6 +400,7 @@ impl Env for MetaEnv {
             let on = self.world.contacts().pelvis_on_prop(self.setup.seat);
             let d = self.seat_distance();
             self.judge.tick(on, d);
+            self.record_frame();
             if self.world.has_fallen() || !self.world.root_height().is_finite() {
                 fell = true;
                 break;

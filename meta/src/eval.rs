@@ -13,6 +13,8 @@ use repertoire_learn::env::{Env, EnvRng};
 use repertoire_report::{StartPoint, success_map, transition_matrix};
 use serde::{Deserialize, Serialize};
 
+use repertoire_scenes::Recording;
+
 use crate::env::{MetaEnv, MetaSetup};
 use crate::error::{MetaError, Result};
 
@@ -86,7 +88,6 @@ pub fn evaluate(
         }
     }
     let names: Vec<String> = setup.skills.iter().map(|s| s.name.clone()).collect();
-    let k = names.len();
     let mut all = Vec::new();
     for (zi, zone) in zones.iter().enumerate() {
         *setup.zones.write().expect("never poisoned") = vec![zone.clone()];
@@ -94,32 +95,117 @@ pub fn evaluate(
             .collect::<Vec<_>>()
             .chunks(batch.max(1))
             .map(|chunk| {
-                chunk
-                    .par_iter()
-                    .map(|&i| {
-                        let mut env = MetaEnv::new(Arc::clone(setup));
-                        let mut ctl = controller.clone();
-                        let mut rng = EnvRng::seed_from_u64(seed);
-                        rng.set_stream((zi * trials + i) as u64 + 1);
-                        let mut obs = vec![0.0; env.obs_dim()];
-                        let mut act = vec![0.0; env.act_dim()];
-                        let mut mask = vec![true; k];
-                        env.reset(&mut rng, &mut obs);
-                        loop {
-                            env.option_mask(&mut mask);
-                            ctl.act(&obs, &mask, &mut act);
-                            let out = env.step(&act, &mut obs);
-                            if out.terminated || out.truncated {
-                                return trial_of(setup, &env, i, zone, &out.terms, &names);
-                            }
-                        }
-                    })
-                    .collect()
+                chunk.par_iter().map(|&i| run_trial(setup, controller, zi, zone, trials, i, seed, false).0).collect()
             })
             .collect();
         all.extend(chunks.into_iter().flatten());
     }
     Ok(report(zones, names, all))
+}
+
+/// Runs trial `i` of zone `zone` (the `zi`-th of the evaluation's zones, `trials` per zone),
+/// seeded exactly as [`evaluate`] seeds it; with `record`, also its recording.
+#[allow(clippy::too_many_arguments)]
+fn run_trial(
+    setup: &Arc<MetaSetup>,
+    controller: &ActingHybrid,
+    zi: usize,
+    zone: &str,
+    trials: usize,
+    i: usize,
+    seed: u64,
+    record: bool,
+) -> (Trial, Option<Recording>) {
+    let names: Vec<String> = setup.skills.iter().map(|s| s.name.clone()).collect();
+    let mut env = MetaEnv::new(Arc::clone(setup));
+    if record {
+        env.record_episodes(format!("meta-controller, zone {zone}, trial {i} (seed {seed})"));
+    }
+    let mut ctl = controller.clone();
+    let mut rng = EnvRng::seed_from_u64(seed);
+    rng.set_stream((zi * trials + i) as u64 + 1);
+    let mut obs = vec![0.0; env.obs_dim()];
+    let mut act = vec![0.0; env.act_dim()];
+    let mut mask = vec![true; names.len()];
+    env.reset(&mut rng, &mut obs);
+    loop {
+        env.option_mask(&mut mask);
+        ctl.act(&obs, &mask, &mut act);
+        let out = env.step(&act, &mut obs);
+        if out.terminated || out.truncated {
+            let trial = trial_of(setup, &env, i, zone, &out.terms, &names);
+            return (trial, env.recording());
+        }
+    }
+}
+
+/// The `n` worst trials of `report` (failures first, then the largest minimum distance), or
+/// with `per_zone`, the `n` worst of each zone.
+pub fn worst_trials(report: &MetaReport, n: usize, per_zone: bool) -> Vec<&Trial> {
+    let mut sorted: Vec<&Trial> = report.trials.iter().collect();
+    sorted.sort_by(|a, b| a.success.cmp(&b.success).then(b.min_distance.total_cmp(&a.min_distance)));
+    if !per_zone {
+        sorted.truncate(n);
+        return sorted;
+    }
+    let mut out = Vec::new();
+    for row in report.zones.iter().filter(|r| r.zone != "all") {
+        out.extend(sorted.iter().filter(|t| t.zone == row.zone).take(n));
+    }
+    out
+}
+
+/// Runs `trial` of an evaluation over `zones` (`trials` per zone, `seed`) again, recorded. The
+/// controller acts by its mode, so the rerun is the same trial; an error if it is not.
+pub fn record_trial(
+    setup: &Arc<MetaSetup>,
+    controller: &ActingHybrid,
+    zones: &[String],
+    trials: usize,
+    seed: u64,
+    trial: &Trial,
+) -> Result<Recording> {
+    let zi = zones.iter().position(|z| *z == trial.zone).ok_or_else(|| {
+        MetaError::Invalid(format!("trial {} is of zone `{}`, not evaluated here", trial.index, trial.zone))
+    })?;
+    // Episodes draw their zone from the setup's list, as in the evaluation (one zone at a time).
+    *setup.zones.write().expect("never poisoned") = vec![trial.zone.clone()];
+    let (again, rec) = run_trial(setup, controller, zi, &trial.zone, trials, trial.index, seed, true);
+    if again.min_distance != trial.min_distance || again.success != trial.success {
+        return Err(MetaError::Invalid(format!(
+            "trial {} of zone `{}` did not replay the same (min distance {} then {})",
+            trial.index, trial.zone, trial.min_distance, again.min_distance
+        )));
+    }
+    rec.ok_or_else(|| MetaError::Invalid("the rerun was not recorded".into()))
+}
+
+/// Records the worst trials of `report` into `dir` as `trial_<zone>_<index>.rec`; returns the
+/// files written.
+#[allow(clippy::too_many_arguments)]
+pub fn save_worst(
+    setup: &Arc<MetaSetup>,
+    controller: &ActingHybrid,
+    report: &MetaReport,
+    zones: &[String],
+    trials: usize,
+    seed: u64,
+    n: usize,
+    per_zone: bool,
+    dir: &Path,
+) -> Result<Vec<std::path::PathBuf>> {
+    let worst = worst_trials(report, n, per_zone);
+    if worst.is_empty() {
+        return Ok(Vec::new());
+    }
+    std::fs::create_dir_all(dir).map_err(|e| MetaError::Invalid(format!("{}: cannot create: {e}", dir.display())))?;
+    let mut written = Vec::new();
+    for t in worst {
+        let path = dir.join(format!("trial_{}_{}.rec", t.zone, t.index));
+        record_trial(setup, controller, zones, trials, seed, t)?.save(&path)?;
+        written.push(path);
+    }
+    Ok(written)
 }
 
 fn trial_of(setup: &MetaSetup, env: &MetaEnv, index: usize, zone: &str, terms: &[f32], names: &[String]) -> Trial {

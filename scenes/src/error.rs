@@ -107,6 +107,22 @@ pub enum SceneError {
         /// What is wrong.
         message: String,
     },
+    /// A file could not be written.
+    #[error("{}: cannot write: {source}", file.display())]
+    Write {
+        /// The file.
+        file: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// A recording file that is not one, is cut short, corrupt or inconsistent.
+    #[error("{}: {message}", file.display())]
+    Recording {
+        /// The recording file.
+        file: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
     /// A runtime request that does not fit the world (wrong action length, unknown prop, ...).
     #[error("{0}")]
     Usage(String),

@@ -12,6 +12,8 @@ pub mod error;
 pub mod math;
 pub mod obs;
 pub mod param;
+pub mod record;
+pub mod replay;
 pub mod scenario;
 pub mod world;
 
@@ -19,6 +21,7 @@ pub use body::{BodyDef, BodyIndex, BodyMap};
 pub use error::{Location, Result, SceneError};
 pub use obs::{Feature, ObservationLayout};
 pub use param::Param;
+pub use record::{Annotation, RecordOptions, Recorder, Recording};
 pub use scenario::{Prop, Scenario, ScenarioFile};
 pub use world::{Contacts, World, WorldModel, step_parallel};
 

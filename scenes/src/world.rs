@@ -250,6 +250,11 @@ impl World {
         self.data.time()
     }
 
+    /// Sets the simulated time (kinematic playback, where no step advances it).
+    pub fn set_time(&mut self, seconds: f64) {
+        self.data.set_time(seconds);
+    }
+
     /// Where each prop is this episode.
     pub fn placements(&self) -> &[PropPlacement] {
         &self.placements

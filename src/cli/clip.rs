@@ -1,9 +1,12 @@
-//! `repertoire clip check FILE --body B [--map M] [--out OUT] [--fps F]`.
+//! `repertoire clip check FILE --body B [--map M] [--out OUT] [--fps F]` and
+//! `repertoire clip play FILE --record OUT.rec [--html OUT.html]`.
 
 use anyhow::{Context, Result, bail};
 use clap::Subcommand;
 use repertoire_clip::{ClipBody, ClipSource, LoadedMap, RetargetOptions};
-use std::path::PathBuf;
+use repertoire_scenes::{Annotation, RecordOptions, Recorder, WorldModel};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 #[derive(Debug, Subcommand)]
 pub enum ClipCommand {
@@ -33,11 +36,36 @@ pub enum ClipCommand {
         #[arg(long)]
         fps: Option<f64>,
     },
+    /// Play a clip kinematically on the scenario's body (no physics) and record it, for
+    /// `repertoire replay` and `repertoire export`.
+    Play {
+        /// Any clip the project reads: mocap (BVH, ASF/AMC, DeepMimic), a keyframe .ron, or a
+        /// retargeted .clip.ron / .npy.
+        file: PathBuf,
+        /// Retarget map for mocap (default: the shipped map whose joints the file has).
+        #[arg(long)]
+        map: Option<PathBuf>,
+        /// Scenario whose body it plays on (default: the built-in scenes/sit.ron).
+        #[arg(long)]
+        scene: Option<PathBuf>,
+        /// Keep the scenario's props at their nominal places (by default the clip plays alone).
+        #[arg(long)]
+        props: bool,
+        /// Where the recording goes.
+        #[arg(long)]
+        record: PathBuf,
+        /// Also write the replay page here.
+        #[arg(long)]
+        html: Option<PathBuf>,
+    },
 }
 
 pub fn run(cmd: ClipCommand) -> Result<()> {
     match cmd {
         ClipCommand::Check { file, body, map, asf, amc, out, fps } => check(file, &body, map, asf.or(amc), out, fps),
+        ClipCommand::Play { file, map, scene, props, record, html } => {
+            play(&file, map.as_deref(), scene.as_ref(), props, &record, html)
+        }
     }
 }
 
@@ -96,5 +124,60 @@ fn check(
     }
     report.clip.save(&out)?;
     println!("wrote     {} (hash {})", out.display(), report.clip.content_hash());
+    Ok(())
+}
+
+fn play(
+    file: &Path,
+    map: Option<&Path>,
+    scene: Option<&PathBuf>,
+    props: bool,
+    record: &Path,
+    html: Option<PathBuf>,
+) -> Result<()> {
+    let mut scenario = super::load_scenario(scene)?;
+    if !props {
+        scenario.scenario.props.clear();
+        scenario.scenario.spawn.clear();
+    }
+    let model = Arc::new(WorldModel::build(scenario)?);
+    let body = ClipBody::new(model.body.clone())?;
+    let clip =
+        repertoire_skill::load_clip(file, map, &body).with_context(|| format!("{}: unusable clip", file.display()))?;
+    let hz = 1.0 / model.control_dt();
+    let clip = clip.resampled(hz)?;
+    let mut world = model.new_world();
+    let options = RecordOptions {
+        title: format!("clip {} (kinematic playback of {})", clip.name, file.display()),
+        phase: "clip frame".into(),
+        capacity: clip.frame_count(),
+        ..Default::default()
+    };
+    let mut rec = Recorder::new(&model, options);
+    let idx = &body.index;
+    let mut joints = vec![0.0; idx.joints.len()];
+    for f in 0..clip.frame_count() {
+        let q = clip.frame(f).expect("a frame in range");
+        let r = idx.root_qpos;
+        for (a, j) in joints.iter_mut().zip(&idx.joints) {
+            *a = q[j.qpos];
+        }
+        world.set_motion(
+            [q[r], q[r + 1], q[r + 2]],
+            [q[r + 3], q[r + 4], q[r + 5], q[r + 6]],
+            &joints,
+            [0.0; 6],
+            None,
+        )?;
+        world.set_time(f as f64 / hz);
+        rec.record(&world, &Annotation { phase: f as f64, ..Default::default() });
+    }
+    let rec = rec.finish();
+    rec.save(record)?;
+    println!("{}: {} frames at {hz} Hz recorded to {}", clip.name, rec.frames(), record.display());
+    if let Some(out) = html {
+        let size = super::replay::replay_file(record, &out, &super::replay::web_dir(None))?;
+        println!("replay page written to {} ({:.1} MB)", out.display(), size as f64 / 1e6);
+    }
     Ok(())
 }

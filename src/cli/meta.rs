@@ -6,7 +6,7 @@ use std::sync::Arc;
 
 use anyhow::{Context, Result};
 use clap::Subcommand;
-use repertoire_meta::eval::evaluate;
+use repertoire_meta::eval::{evaluate, save_worst};
 use repertoire_meta::train::{MetaTrainOptions, default_ppo, load, train};
 use repertoire_meta::{MetaSetup, SkillGraph};
 use repertoire_scenes::WorldModel;
@@ -82,6 +82,10 @@ pub enum MetaCommand {
         /// Same skill restriction as at training.
         #[arg(long, value_delimiter = ',')]
         skills: Vec<String>,
+        /// Record this many of the worst trials into <out>/worst/ (with replay pages when
+        /// three.js is installed); 0 records none.
+        #[arg(long, default_value_t = 3)]
+        worst: usize,
     },
 }
 
@@ -140,7 +144,7 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
             println!("meta-controller written to {}; run in {}", out.display(), run_dir.display());
             Ok(())
         }
-        MetaCommand::Eval { file, library, meta, trials, zones, batch, seed, out, chain, skills } => {
+        MetaCommand::Eval { file, library, meta, trials, zones, batch, seed, out, chain, skills, worst } => {
             let setup = setup(file.as_ref(), &library, &chain, &skills)?;
             let (_, head) = load(&meta, &setup)?;
             let zones = if zones.is_empty() {
@@ -153,6 +157,16 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
             let out = out.unwrap_or_else(|| meta.join("eval"));
             report.write(&out)?;
             println!("\nreport.md, trials.csv and report.json written to {}", out.display());
+            let recs = save_worst(&setup, &head, &report, &zones, trials, seed, worst, false, &out.join("worst"))?;
+            super::replay::pages_beside(&recs);
+            if !recs.is_empty() {
+                println!(
+                    "{} worst trials recorded in {} (watch: repertoire replay {})",
+                    recs.len(),
+                    out.join("worst").display(),
+                    out.display()
+                );
+            }
             Ok(())
         }
     }

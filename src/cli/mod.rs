@@ -4,6 +4,7 @@ mod ablate;
 mod bench;
 mod clip;
 mod meta;
+pub mod replay;
 mod report;
 mod run;
 mod scene;
@@ -44,6 +45,10 @@ pub enum Command {
     /// Train and evaluate the meta-controller of a sitting scenario.
     #[command(subcommand)]
     Meta(meta::MetaCommand),
+    /// Write a recording (or every recording in a folder) as a self-contained HTML replay page.
+    Replay(replay::ReplayArgs),
+    /// Export a recording's motion: BVH (Blender, Maya, game engines) and/or qpos as .npy.
+    Export(replay::ExportArgs),
     /// Run an ablation study (variants × seeds of the meta-controller) and write its table.
     Ablate {
         /// The study (RON): scenario, library, seeds, iterations, trials, variants.
@@ -72,6 +77,8 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Clip(cmd) => clip::run(cmd),
         Command::Skill(cmd) => skill::run(cmd),
         Command::Meta(cmd) => meta::run(cmd),
+        Command::Replay(args) => replay::replay(args),
+        Command::Export(args) => replay::export(args),
         Command::Ablate { spec, out, plan_only } => ablate::run(&spec, &out, plan_only),
         Command::Report { dir } => {
             let page = report::run(&dir)?;

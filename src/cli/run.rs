@@ -33,6 +33,10 @@ pub struct RunArgs {
     /// Trials per spawn zone.
     #[arg(long, default_value_t = 20)]
     pub trials: usize,
+    /// Where the evaluation's reports and the worst trial of each zone (recording and replay
+    /// page) go (default: runs/run-<time>-s<seed>).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
 }
 
 pub fn run(args: RunArgs) -> Result<()> {
@@ -56,6 +60,26 @@ pub fn run(args: RunArgs) -> Result<()> {
 {} trials in {:.1} s; `repertoire meta eval` runs the full evaluation",
             report.trials.len(),
             t0.elapsed().as_secs_f64()
+        );
+        let secs = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
+        let out = args.out.unwrap_or_else(|| PathBuf::from(format!("runs/run-{secs}-s{}", args.seed)));
+        report.write(&out)?;
+        let recs = repertoire_meta::eval::save_worst(
+            &setup,
+            &head,
+            &report,
+            &zones,
+            args.trials,
+            args.seed,
+            1,
+            true,
+            &out.join("worst"),
+        )?;
+        super::replay::pages_beside(&recs);
+        println!(
+            "reports and the worst trial of each zone written to {} (watch: repertoire replay {})",
+            out.display(),
+            out.display()
         );
         return Ok(());
     }

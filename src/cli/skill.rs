@@ -1,4 +1,5 @@
-//! `repertoire skill train SPEC`, `skill finetune SPEC --from A,B`, `skill eval SPEC`.
+//! `repertoire skill train SPEC`, `skill finetune SPEC --from A,B`, `skill eval SPEC`,
+//! `skill play SPEC --record OUT.rec`.
 
 use std::path::{Path, PathBuf};
 
@@ -34,6 +35,31 @@ pub enum SkillCommand {
         fraction: f64,
         #[command(flatten)]
         common: TrainArgs,
+    },
+    /// Play one episode of a library skill with its mean action and record it, with the
+    /// reference clip as a ghost (for `repertoire replay` and `repertoire export`).
+    Play {
+        /// The skill spec (the library entry of the same name is played).
+        spec: PathBuf,
+        /// Where the recording goes.
+        #[arg(long)]
+        record: PathBuf,
+        /// Also write the replay page here.
+        #[arg(long)]
+        html: Option<PathBuf>,
+        /// Skill library folder.
+        #[arg(long, default_value = DEFAULT_LIBRARY)]
+        library: PathBuf,
+        /// Seed of the episode.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Start from an end pose of one of these predecessors (their `skill eval` pools)
+        /// instead of the clip start.
+        #[arg(long, value_delimiter = ',')]
+        from: Vec<String>,
+        /// The folder holding node_modules/three (for --html).
+        #[arg(long)]
+        web: Option<PathBuf>,
     },
     /// Evaluate a library skill: success from the clip start and from predecessors' end poses,
     /// normalised episode length and return; writes its end-pose pool.
@@ -99,6 +125,9 @@ pub fn run(cmd: SkillCommand) -> Result<()> {
         SkillCommand::Train { spec, common } => train_cmd(&spec, None, common, command),
         SkillCommand::Finetune { spec, from, fraction, common } => {
             train_cmd(&spec, Some((from, fraction)), common, command)
+        }
+        SkillCommand::Play { spec, record, html, library, seed, from, web } => {
+            play_cmd(&spec, &record, html.as_deref(), &library, seed, from, web.as_deref())
         }
         SkillCommand::Eval { spec, library, trials, batch, seed, from, no_pool, pool_size } => {
             eval_cmd(&spec, &library, trials, batch, seed, from, no_pool, pool_size)
@@ -213,6 +242,44 @@ fn eval_cmd(
         let path = library::skill_dir(library, &name).join("end_poses.ron");
         pool.save(&path)?;
         println!("{} successful end poses written to {}", pool.states.len(), path.display());
+    }
+    Ok(())
+}
+
+fn play_cmd(
+    spec_path: &Path,
+    record: &Path,
+    html: Option<&Path>,
+    library: &Path,
+    seed: u64,
+    from: Vec<String>,
+    web: Option<&Path>,
+) -> Result<()> {
+    let mut spec = SpecFile::load(spec_path)?;
+    let start = if from.is_empty() { StartFrom::ClipStart } else { StartFrom::Predecessors };
+    if !from.is_empty() {
+        spec.spec.init = Init::Pools { from, fraction: 1.0 };
+    }
+    let setup = SkillSetup::new(spec, library)?;
+    let name = setup.spec.spec.name.clone();
+    let mut skill = library::load(library, &name)?;
+    let played = repertoire_skill::play::play(&setup, &mut skill, start, seed)?;
+    played.recording.save(record)?;
+    let size = std::fs::metadata(record).map(|m| m.len()).unwrap_or(0);
+    println!(
+        "{name}: {} steps ({:.2} s), {}{}, return {:.2}; recorded to {} ({:.2} MB)",
+        played.steps,
+        f64::from(played.steps) * setup.model.control_dt(),
+        if played.fell { "fell" } else { "did not fall" },
+        if played.on_seat { ", on the seat" } else { "" },
+        played.episode_return,
+        record.display(),
+        size as f64 / 1e6
+    );
+    if let Some(out) = html {
+        let web = super::replay::web_dir(web);
+        let size = super::replay::replay_file(record, out, &web)?;
+        println!("replay page written to {} ({:.1} MB)", out.display(), size as f64 / 1e6);
     }
     Ok(())
 }

@@ -18,6 +18,7 @@ pub mod body;
 pub mod check;
 pub mod clip;
 pub mod error;
+pub mod export;
 pub mod io;
 pub mod keyframe;
 pub mod map;

@@ -195,6 +195,42 @@ impl ImitationTask {
         self.last_distance = self.goal_distance(world);
     }
 
+    /// Completed cycles of a looping clip this episode.
+    pub fn cycles(&self) -> usize {
+        self.cycles
+    }
+
+    /// The reference pose of the current phase placed in this episode's world (the ghost a
+    /// viewer draws): `qpos` becomes `world`'s qpos with the character's root and actuated
+    /// joints set to the reference's. A looping clip's root carries on cycle after cycle.
+    pub fn reference_qpos(&self, world: &World, qpos: &mut [f64]) {
+        let r = &self.settings.reference;
+        let f = self.phase.min(r.frames() - 1);
+        qpos.copy_from_slice(world.data().qpos());
+        let mut p = [r.root_pos[f][0], r.root_pos[f][1]];
+        let mut turned = 0.0;
+        if r.looping {
+            // Each cycle starts where the last one ended: frame 0's root pose maps to the last's.
+            let last = r.frames() - 1;
+            let dh = r.heading[last] - r.heading[0];
+            let (p0, pl) = (r.root_pos[0], r.root_pos[last]);
+            for _ in 0..self.cycles {
+                let d = rotate_z(dh, [p[0] - p0[0], p[1] - p0[1], 0.0]);
+                p = [pl[0] + d[0], pl[1] + d[1]];
+                turned += dh;
+            }
+        }
+        let [x, y] = self.to_world(p);
+        let idx = &world.model().index;
+        let q = mul(yaw_quat(self.yaw + turned), r.root_quat[f]);
+        let root = idx.root_qpos;
+        qpos[root..root + 3].copy_from_slice(&[x, y, r.root_pos[f][2]]);
+        qpos[root + 3..root + 7].copy_from_slice(&q);
+        for (j, &a) in idx.joints.iter().zip(r.joints_at(f)) {
+            qpos[j.qpos] = a;
+        }
+    }
+
     /// Scores `world` against reference frame `f`: the reward, whether it fell, and the terms.
     pub fn score(&mut self, world: &World, f: usize) -> TaskStep {
         let settings = Arc::clone(&self.settings);

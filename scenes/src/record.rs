@@ -1,0 +1,613 @@
+//! Recordings of rollouts: per control tick, every body's pose, the scene's qpos and what the
+//! rollout says about itself (active skill, reward terms, contacts, phase), plus, once per file,
+//! the geoms needed to draw any MJCF scene; optionally a ghost (the reference clip's pose).
+//!
+//! A [`Recorder`] is fed by a rollout loop after each control step; it only pushes into buffers
+//! sized up front. [`Recording::save`] writes one file, atomically:
+//!
+//! ```text
+//! b"REPREC\x01\n"  u32 header length  header (JSON)
+//! time f64[n]  qpos f64[n·nq]  poses f32[n·bodies·7]  ghost f32[n·character·7] (empty without one)
+//! skill i32[n]  phase f32[n]  terms f32[n·terms]  contacts u64[n·5]  fallen u8[n]
+//! FNV-1a 64 of everything before it
+//! ```
+//!
+//! all little-endian; a pose is `x y z qw qx qy qz` in the world frame. A 20 s rollout of the
+//! built-in humanoid at 60 Hz with a ghost is about 1.5 MB.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use mujoco_rs::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Result, SceneError};
+use crate::world::{Contacts, World, WorldModel};
+
+/// The file's first bytes.
+pub const MAGIC: &[u8; 8] = b"REPREC\x01\n";
+/// Version of the header's layout.
+pub const FORMAT: u32 = 1;
+/// Numbers per pose: position then quaternion (w x y z).
+pub const POSE: usize = 7;
+/// u64 words of [`Contacts`] per frame (pelvis_on, hand_on ×2, character_on, prop_on_floor).
+const CONTACT_WORDS: usize = 5;
+
+/// How a geom is drawn.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum GeomShape {
+    /// An infinite plane (size: half extents of the drawn part, 0 = unbounded).
+    Plane,
+    /// Sphere (size[0]: radius).
+    Sphere,
+    /// Capsule along local z (size: radius, half length).
+    Capsule,
+    /// Ellipsoid (size: three radii).
+    Ellipsoid,
+    /// Cylinder along local z (size: radius, half length).
+    Cylinder,
+    /// Box (size: half extents).
+    Box,
+    /// A mesh or height field, drawn as a box of its bounding size.
+    Other,
+}
+
+/// One joint of a body (for exports: which hinges make up a body's rotation).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct JointInfo {
+    /// Its name.
+    pub name: String,
+    /// `free`, `ball`, `slide` or `hinge`.
+    pub kind: String,
+    /// Axis in the body frame (hinge, slide).
+    pub axis: [f64; 3],
+    /// Index into qpos.
+    pub qpos: usize,
+}
+
+/// One recorded body (every body of the model but the world).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BodyInfo {
+    /// Its name.
+    pub name: String,
+    /// Parent body (index into the recording's bodies), `None` under the world.
+    pub parent: Option<usize>,
+    /// Position in the parent's frame at qpos0.
+    pub pos: [f64; 3],
+    /// Orientation in the parent's frame at qpos0 (w x y z).
+    pub quat: [f64; 4],
+    /// Whether it belongs to the character (the ghost draws these).
+    pub character: bool,
+    /// Its joints, in model order.
+    pub joints: Vec<JointInfo>,
+}
+
+/// One geom, as drawn.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct GeomInfo {
+    /// Its name (may be empty).
+    pub name: String,
+    /// The body it moves with (index into the recording's bodies), `None` for world geoms.
+    pub body: Option<usize>,
+    /// Its shape.
+    pub shape: GeomShape,
+    /// MuJoCo's size triple for the shape.
+    pub size: [f64; 3],
+    /// Position in its body's frame.
+    pub pos: [f64; 3],
+    /// Orientation in its body's frame (w x y z).
+    pub quat: [f64; 4],
+    /// Colour.
+    pub rgba: [f32; 4],
+}
+
+/// What a recording holds, written once per file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Header {
+    /// [`FORMAT`].
+    pub format: u32,
+    /// One line for people: what was recorded (`walk: skill play, seed 1`).
+    pub title: String,
+    /// The scenario's name.
+    pub scenario: String,
+    /// Frames per second (the control rate).
+    pub control_hz: f64,
+    /// qpos width of the scene.
+    pub nq: usize,
+    /// Bodies, model order (world left out).
+    pub bodies: Vec<BodyInfo>,
+    /// Geoms, model order.
+    pub geoms: Vec<GeomInfo>,
+    /// Props by name, with their body index.
+    pub props: Vec<(String, usize)>,
+    /// The character's root body (pelvis), index into `bodies`.
+    pub root: usize,
+    /// Names a frame's skill index refers to.
+    pub skills: Vec<String>,
+    /// Names of the per-frame terms (reward terms, distances, ...).
+    pub terms: Vec<String>,
+    /// What the phase counts (`reference frame`, ...).
+    pub phase: String,
+    /// The ghost's clip, when ghost poses of the character's bodies are recorded.
+    pub ghost: Option<String>,
+    /// Number of frames.
+    pub frames: usize,
+}
+
+impl Header {
+    /// Indices (into `bodies`) of the character's bodies, in order: the ghost's pose layout.
+    pub fn character(&self) -> Vec<usize> {
+        (0..self.bodies.len()).filter(|&b| self.bodies[b].character).collect()
+    }
+
+    fn ghost_bodies(&self) -> usize {
+        if self.ghost.is_some() { self.bodies.iter().filter(|b| b.character).count() } else { 0 }
+    }
+
+    /// Bytes of the frame columns (everything between the header and the checksum).
+    fn data_len(&self) -> Option<usize> {
+        let n = self.frames;
+        let per_frame = 8usize
+            .checked_add(8usize.checked_mul(self.nq)?)?
+            .checked_add(4 * POSE * self.bodies.len().checked_add(self.ghost_bodies())?)?
+            .checked_add(4 + 4 + 4usize.checked_mul(self.terms.len())?)?
+            .checked_add(8 * CONTACT_WORDS + 1)?;
+        n.checked_mul(per_frame)
+    }
+}
+
+/// A whole recording: the header and per-frame columns.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Recording {
+    /// What is recorded.
+    pub header: Header,
+    /// Simulated seconds per frame.
+    pub time: Vec<f64>,
+    /// Scene qpos, `frames × nq`.
+    pub qpos: Vec<f64>,
+    /// Body poses, `frames × bodies × 7`.
+    pub poses: Vec<f32>,
+    /// Ghost poses of the character's bodies, `frames × character × 7` (empty without a ghost).
+    pub ghost: Vec<f32>,
+    /// Active skill (index into `header.skills`), −1 for none.
+    pub skill: Vec<i32>,
+    /// Phase (reference frame index, or what `header.phase` says).
+    pub phase: Vec<f32>,
+    /// Terms, `frames × terms`.
+    pub terms: Vec<f32>,
+    /// Contacts per frame.
+    pub contacts: Vec<Contacts>,
+}
+
+/// What a rollout says about one frame besides the world's state.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Annotation<'a> {
+    /// Active skill (index into the header's skills).
+    pub skill: Option<usize>,
+    /// Phase.
+    pub phase: f64,
+    /// Term values, in the header's order (missing ones are recorded as NaN-free zeros).
+    pub terms: &'a [f32],
+    /// The ghost's full scene qpos (only the character's part is used).
+    pub ghost_qpos: Option<&'a [f64]>,
+}
+
+/// What a [`Recorder`] is told up front.
+#[derive(Debug, Clone, Default)]
+pub struct RecordOptions {
+    /// One line for people.
+    pub title: String,
+    /// Skill names.
+    pub skills: Vec<String>,
+    /// Term names.
+    pub terms: Vec<String>,
+    /// What the phase counts.
+    pub phase: String,
+    /// The ghost's clip name, when a ghost is recorded.
+    pub ghost: Option<String>,
+    /// Frames to reserve room for.
+    pub capacity: usize,
+}
+
+/// Collects a rollout's frames; see the module documentation.
+pub struct Recorder {
+    rec: Recording,
+    /// Kinematics of the recorded qpos (after `mj_step`, MuJoCo's body poses are those of the
+    /// state before the last physics step; recomputing them keeps poses and qpos in step).
+    kin: MjData<Arc<MjModel>>,
+    ghost_data: Option<MjData<Arc<MjModel>>>,
+    character: Vec<usize>,
+}
+
+fn shape_of(t: mujoco_rs::wrappers::mj_model::MjtGeomBase) -> GeomShape {
+    use mujoco_rs::wrappers::mj_model::MjtGeomBase as MjtGeom;
+    match t {
+        MjtGeom::mjGEOM_PLANE => GeomShape::Plane,
+        MjtGeom::mjGEOM_SPHERE => GeomShape::Sphere,
+        MjtGeom::mjGEOM_CAPSULE => GeomShape::Capsule,
+        MjtGeom::mjGEOM_ELLIPSOID => GeomShape::Ellipsoid,
+        MjtGeom::mjGEOM_CYLINDER => GeomShape::Cylinder,
+        MjtGeom::mjGEOM_BOX => GeomShape::Box,
+        _ => GeomShape::Other,
+    }
+}
+
+/// The header of a recording of `model`'s scene (frames: 0).
+pub fn header_of(model: &WorldModel, options: &RecordOptions) -> Header {
+    let m = model.mj_model();
+    let nbody = m.ffi().nbody as usize;
+    let name = |kind, i| m.id_to_name(kind, i).unwrap_or("").to_string();
+    let jnt_body = m.jnt_bodyid();
+    let bodies = (1..nbody)
+        .map(|b| BodyInfo {
+            name: name(MjtObjBase::mjOBJ_BODY, b),
+            parent: match m.body_parentid()[b] as usize {
+                0 => None,
+                p => Some(p - 1),
+            },
+            pos: m.body_pos()[b],
+            quat: m.body_quat()[b],
+            character: model.index.is_character[b],
+            joints: (0..jnt_body.len())
+                .filter(|&j| jnt_body[j] as usize == b)
+                .map(|j| JointInfo {
+                    name: name(MjtObjBase::mjOBJ_JOINT, j),
+                    kind: match m.jnt_type()[j] {
+                        MjtJoint::mjJNT_FREE => "free",
+                        MjtJoint::mjJNT_BALL => "ball",
+                        MjtJoint::mjJNT_SLIDE => "slide",
+                        _ => "hinge",
+                    }
+                    .to_string(),
+                    axis: m.jnt_axis()[j],
+                    qpos: m.jnt_qposadr()[j] as usize,
+                })
+                .collect(),
+        })
+        .collect();
+    let matid = m.geom_matid();
+    let geoms = (0..m.ffi().ngeom as usize)
+        .map(|g| GeomInfo {
+            name: name(MjtObjBase::mjOBJ_GEOM, g),
+            body: match m.geom_bodyid()[g] as usize {
+                0 => None,
+                b => Some(b - 1),
+            },
+            shape: shape_of(m.geom_type()[g]),
+            size: m.geom_size()[g],
+            pos: m.geom_pos()[g],
+            quat: m.geom_quat()[g],
+            rgba: if matid[g] >= 0 { m.mat_rgba()[matid[g] as usize] } else { m.geom_rgba()[g] },
+        })
+        .collect();
+    Header {
+        format: FORMAT,
+        title: options.title.clone(),
+        scenario: model.scenario.scenario.name.clone(),
+        control_hz: 1.0 / model.control_dt(),
+        nq: m.ffi().nq as usize,
+        bodies,
+        geoms,
+        props: model.props.iter().map(|p| (p.name.clone(), p.body - 1)).collect(),
+        root: model.index.pelvis - 1,
+        skills: options.skills.clone(),
+        terms: options.terms.clone(),
+        phase: options.phase.clone(),
+        ghost: options.ghost.clone(),
+        frames: 0,
+    }
+}
+
+impl Recorder {
+    /// A recorder for worlds of `model`, with room for `options.capacity` frames.
+    pub fn new(model: &WorldModel, options: RecordOptions) -> Self {
+        let header = header_of(model, &options);
+        let n = options.capacity;
+        let character = header.character();
+        let ghost_bodies = header.ghost_bodies();
+        let rec = Recording {
+            time: Vec::with_capacity(n),
+            qpos: Vec::with_capacity(n * header.nq),
+            poses: Vec::with_capacity(n * header.bodies.len() * POSE),
+            ghost: Vec::with_capacity(n * ghost_bodies * POSE),
+            skill: Vec::with_capacity(n),
+            phase: Vec::with_capacity(n),
+            terms: Vec::with_capacity(n * header.terms.len()),
+            contacts: Vec::with_capacity(n),
+            header,
+        };
+        let ghost_data = options.ghost.as_ref().map(|_| MjData::new(Arc::clone(model.mj_model())));
+        Recorder { rec, kin: MjData::new(Arc::clone(model.mj_model())), ghost_data, character }
+    }
+
+    /// Frames recorded so far.
+    pub fn len(&self) -> usize {
+        self.rec.time.len()
+    }
+
+    /// Whether no frame was recorded yet.
+    pub fn is_empty(&self) -> bool {
+        self.rec.time.is_empty()
+    }
+
+    /// Records `world` as it is now, with the rollout's annotation. A diverged state (a NaN or
+    /// infinite qpos) is not recorded: the recording ends at the last finite frame.
+    pub fn record(&mut self, world: &World, a: &Annotation<'_>) {
+        let d = world.data();
+        if !d.time().is_finite() || d.qpos().iter().any(|v| !v.is_finite()) {
+            return;
+        }
+        let r = &mut self.rec;
+        r.time.push(d.time());
+        r.qpos.extend_from_slice(d.qpos());
+        let k = &mut self.kin;
+        k.qpos_mut().copy_from_slice(d.qpos());
+        for (dst, src) in k.mocap_pos_mut().iter_mut().zip(d.mocap_pos()) {
+            *dst = *src;
+        }
+        for (dst, src) in k.mocap_quat_mut().iter_mut().zip(d.mocap_quat()) {
+            *dst = *src;
+        }
+        k.kinematics();
+        let (xpos, xquat) = (k.xpos(), k.xquat());
+        for b in 1..xpos.len() {
+            push_pose(&mut r.poses, xpos[b], xquat[b]);
+        }
+        if let Some(g) = self.ghost_data.as_mut() {
+            match a.ghost_qpos.filter(|q| q.len() == g.qpos().len()) {
+                Some(q) => {
+                    g.qpos_mut().copy_from_slice(q);
+                    for (dst, src) in g.mocap_pos_mut().iter_mut().zip(d.mocap_pos()) {
+                        *dst = *src;
+                    }
+                    g.kinematics();
+                    for &b in &self.character {
+                        push_pose(&mut r.ghost, g.xpos()[b + 1], g.xquat()[b + 1]);
+                    }
+                }
+                // No reference this frame: the ghost stands where the body is.
+                None => {
+                    for &b in &self.character {
+                        push_pose(&mut r.ghost, xpos[b + 1], xquat[b + 1]);
+                    }
+                }
+            }
+        }
+        r.skill.push(a.skill.map_or(-1, |s| s as i32));
+        r.phase.push(a.phase as f32);
+        let nt = r.header.terms.len();
+        r.terms.extend((0..nt).map(|k| a.terms.get(k).copied().filter(|v| v.is_finite()).unwrap_or(0.0)));
+        r.contacts.push(world.contacts());
+        r.header.frames += 1;
+    }
+
+    /// The recording.
+    pub fn finish(self) -> Recording {
+        self.rec
+    }
+}
+
+fn push_pose(out: &mut Vec<f32>, p: [f64; 3], q: [f64; 4]) {
+    out.extend([p[0], p[1], p[2], q[0], q[1], q[2], q[3]].map(|v| v as f32));
+}
+
+fn fnv1a(bytes: &[u8]) -> u64 {
+    crate::body::fnv1a(&[bytes])
+}
+
+impl Recording {
+    /// Number of frames.
+    pub fn frames(&self) -> usize {
+        self.header.frames
+    }
+
+    /// Seconds per frame.
+    pub fn dt(&self) -> f64 {
+        1.0 / self.header.control_hz
+    }
+
+    /// Frame `f`'s qpos.
+    pub fn qpos_at(&self, f: usize) -> &[f64] {
+        &self.qpos[f * self.header.nq..(f + 1) * self.header.nq]
+    }
+
+    /// Frame `f`'s pose of body `b` (index into the header's bodies): position, quaternion.
+    pub fn pose(&self, f: usize, b: usize) -> ([f64; 3], [f64; 4]) {
+        let k = (f * self.header.bodies.len() + b) * POSE;
+        let p = &self.poses[k..k + POSE];
+        let v = |i: usize| f64::from(p[i]);
+        ([v(0), v(1), v(2)], [v(3), v(4), v(5), v(6)])
+    }
+
+    /// The file's bytes (see the module documentation).
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let header = serde_json::to_vec(&self.header).expect("a header is plain data");
+        let data = self.header.data_len().unwrap_or(0);
+        let mut out = Vec::with_capacity(MAGIC.len() + 4 + header.len() + data + 8);
+        out.extend_from_slice(MAGIC);
+        out.extend_from_slice(&(header.len() as u32).to_le_bytes());
+        out.extend_from_slice(&header);
+        self.time.iter().for_each(|v| out.extend_from_slice(&v.to_le_bytes()));
+        self.qpos.iter().for_each(|v| out.extend_from_slice(&v.to_le_bytes()));
+        self.poses.iter().for_each(|v| out.extend_from_slice(&v.to_le_bytes()));
+        self.ghost.iter().for_each(|v| out.extend_from_slice(&v.to_le_bytes()));
+        self.skill.iter().for_each(|v| out.extend_from_slice(&v.to_le_bytes()));
+        self.phase.iter().for_each(|v| out.extend_from_slice(&v.to_le_bytes()));
+        self.terms.iter().for_each(|v| out.extend_from_slice(&v.to_le_bytes()));
+        for c in &self.contacts {
+            for w in [c.pelvis_on, c.hand_on[0], c.hand_on[1], c.character_on, c.prop_on_floor] {
+                out.extend_from_slice(&w.to_le_bytes());
+            }
+        }
+        out.extend(self.contacts.iter().map(|c| u8::from(c.fallen)));
+        let sum = fnv1a(&out);
+        out.extend_from_slice(&sum.to_le_bytes());
+        out
+    }
+
+    /// Writes the recording to `path` (a temporary file beside it, then a rename).
+    pub fn save(&self, path: &Path) -> Result<()> {
+        self.check().map_err(|m| corrupt(path, m))?;
+        write_atomic(path, &self.to_bytes())
+    }
+
+    /// Reads a recording; a file that is not one, is cut short, corrupt or inconsistent is
+    /// refused with the file and what is wrong named.
+    pub fn load(path: &Path) -> Result<Recording> {
+        let bytes = std::fs::read(path).map_err(|source| SceneError::Io { file: path.to_path_buf(), source })?;
+        Self::from_bytes(&bytes).map_err(|m| corrupt(path, m))
+    }
+
+    /// Parses a recording's bytes; the error says what is wrong (without the file name).
+    pub fn from_bytes(bytes: &[u8]) -> std::result::Result<Recording, String> {
+        let rest = bytes.strip_prefix(MAGIC.as_slice()).ok_or_else(|| {
+            "not a Repertoire recording (it does not start with REPREC 1; make one with `--record`)".to_string()
+        })?;
+        let (len, rest) = rest.split_at_checked(4).ok_or("cut short inside the header")?;
+        let len = u32::from_le_bytes([len[0], len[1], len[2], len[3]]) as usize;
+        let (header, data) = rest
+            .split_at_checked(len)
+            .ok_or_else(|| format!("cut short: the header says it is {len} bytes, {} bytes follow", rest.len()))?;
+        let header: Header = serde_json::from_slice(header)
+            .map_err(|e| format!("header line {} column {}: {e}", e.line(), e.column()))?;
+        if header.format != FORMAT {
+            return Err(format!("recording format {} (this build reads format {FORMAT})", header.format));
+        }
+        let want = header.data_len().ok_or("the header's sizes overflow")?;
+        if data.len() != want + 8 {
+            return Err(format!(
+                "cut short or padded: the header's {} frames need {} bytes after the header, found {}",
+                header.frames,
+                want + 8,
+                data.len()
+            ));
+        }
+        let body_end = bytes.len() - 8;
+        let stored = u64::from_le_bytes(bytes[body_end..].try_into().expect("8 bytes"));
+        if fnv1a(&bytes[..body_end]) != stored {
+            return Err("checksum mismatch: the file is corrupt (changed after it was written)".into());
+        }
+        let n = header.frames;
+        let mut at = 0usize;
+        let mut take = |count: usize, width: usize| {
+            let s = &data[at..at + count * width];
+            at += count * width;
+            s
+        };
+        let f64s = |s: &[u8]| s.chunks_exact(8).map(|c| f64::from_le_bytes(c.try_into().expect("8"))).collect();
+        let f32s = |s: &[u8]| s.chunks_exact(4).map(|c| f32::from_le_bytes(c.try_into().expect("4"))).collect();
+        let u64s = |s: &[u8]| -> Vec<u64> {
+            s.chunks_exact(8).map(|c| u64::from_le_bytes(c.try_into().expect("8"))).collect()
+        };
+        let nb = header.bodies.len();
+        let time: Vec<f64> = f64s(take(n, 8));
+        let qpos: Vec<f64> = f64s(take(n * header.nq, 8));
+        let poses: Vec<f32> = f32s(take(n * nb * POSE, 4));
+        let ghost: Vec<f32> = f32s(take(n * header.ghost_bodies() * POSE, 4));
+        let skill = take(n, 4).chunks_exact(4).map(|c| i32::from_le_bytes(c.try_into().expect("4"))).collect();
+        let phase: Vec<f32> = f32s(take(n, 4));
+        let terms: Vec<f32> = f32s(take(n * header.terms.len(), 4));
+        let words = u64s(take(n * CONTACT_WORDS, 8));
+        let fallen = take(n, 1);
+        let contacts = words
+            .chunks_exact(CONTACT_WORDS)
+            .zip(fallen)
+            .map(|(w, &f)| Contacts {
+                fallen: f != 0,
+                pelvis_on: w[0],
+                hand_on: [w[1], w[2]],
+                character_on: w[3],
+                prop_on_floor: w[4],
+            })
+            .collect();
+        let rec = Recording { header, time, qpos, poses, ghost, skill, phase, terms, contacts };
+        rec.check()?;
+        Ok(rec)
+    }
+
+    /// Checks the header's references and that every number is finite.
+    fn check(&self) -> std::result::Result<(), String> {
+        let h = &self.header;
+        let nb = h.bodies.len();
+        if h.control_hz.is_nan() || h.control_hz <= 0.0 {
+            return Err(format!("control rate {} is not positive", h.control_hz));
+        }
+        if h.root >= nb {
+            return Err(format!("root body {} is not one of the {nb} bodies", h.root));
+        }
+        for (i, b) in h.bodies.iter().enumerate() {
+            if b.parent.is_some_and(|p| p >= i) {
+                return Err(format!(
+                    "body {i} (`{}`) names parent {:?}, which does not come before it",
+                    b.name, b.parent
+                ));
+            }
+            if let Some(j) = b.joints.iter().find(|j| j.qpos >= h.nq) {
+                return Err(format!("joint `{}` has qpos address {} past nq {}", j.name, j.qpos, h.nq));
+            }
+        }
+        if let Some(g) = h.geoms.iter().find(|g| g.body.is_some_and(|b| b >= nb)) {
+            return Err(format!("geom `{}` belongs to body {:?}, past the {nb} bodies", g.name, g.body));
+        }
+        if let Some((p, _)) = h.props.iter().find(|(_, b)| *b >= nb) {
+            return Err(format!("prop `{p}` has no body"));
+        }
+        let n = h.frames;
+        let sizes = [
+            ("time", self.time.len(), n),
+            ("qpos", self.qpos.len(), n * h.nq),
+            ("poses", self.poses.len(), n * nb * POSE),
+            ("ghost", self.ghost.len(), n * h.ghost_bodies() * POSE),
+            ("skill", self.skill.len(), n),
+            ("phase", self.phase.len(), n),
+            ("terms", self.terms.len(), n * h.terms.len()),
+            ("contacts", self.contacts.len(), n),
+        ];
+        if let Some((what, got, want)) = sizes.iter().find(|(_, got, want)| got != want) {
+            return Err(format!("{what} holds {got} values, {n} frames need {want}"));
+        }
+        let frame_of = |k: usize, width: usize| k / width.max(1);
+        if let Some(k) = self.time.iter().position(|v| !v.is_finite()) {
+            return Err(format!("frame {k}: time is not a finite number"));
+        }
+        if let Some(k) = self.qpos.iter().position(|v| !v.is_finite()) {
+            return Err(format!("frame {}: qpos value {} is not a finite number", frame_of(k, h.nq), k % h.nq));
+        }
+        if let Some(k) = self.poses.iter().position(|v| !v.is_finite()) {
+            let b = (k / POSE) % nb.max(1);
+            return Err(format!(
+                "frame {}: the pose of body `{}` is not finite",
+                frame_of(k, nb * POSE),
+                h.bodies[b].name
+            ));
+        }
+        if let Some(k) = self.ghost.iter().position(|v| !v.is_finite()) {
+            return Err(format!("frame {}: a ghost pose is not finite", frame_of(k, h.ghost_bodies() * POSE)));
+        }
+        if let Some(k) = self.skill.iter().position(|&s| s < -1 || s >= h.skills.len() as i32) {
+            return Err(format!(
+                "frame {k}: skill index {} is not one of the {} skills",
+                self.skill[k],
+                h.skills.len()
+            ));
+        }
+        Ok(())
+    }
+}
+
+fn corrupt(path: &Path, message: String) -> SceneError {
+    SceneError::Recording { file: path.to_path_buf(), message }
+}
+
+/// Writes `bytes` to `path` via a temporary file beside it and a rename, so readers never see
+/// half a file.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into());
+    let tmp: PathBuf = path.with_file_name(format!(".{name}.{}.partial", std::process::id()));
+    let fail = |file: &Path, e: std::io::Error| SceneError::Write { file: file.to_path_buf(), source: e };
+    std::fs::write(&tmp, bytes).map_err(|e| fail(&tmp, e))?;
+    std::fs::rename(&tmp, path).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        fail(path, e)
+    })
+}

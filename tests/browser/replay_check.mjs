@@ -1,0 +1,89 @@
+// Opens a replay page in headless Chromium and checks it works:
+//   node tests/browser/replay_check.mjs PAGE.html SCREENSHOT.png
+// - the page loads with no console error and no page error;
+// - the canvas is drawn (the screenshot of the 3-D view has many distinct colours);
+// - playback advances (window.__replay.frame moves on while playing).
+// Uses playwright-core from scenes/web/node_modules (scripts/setup.sh) and /usr/bin/chromium
+// (or $CHROMIUM). Prints one JSON line of measurements; exits 1 with the reason on failure.
+
+import { createRequire } from 'node:module';
+import { existsSync, mkdtempSync, rmSync } from 'node:fs';
+import { tmpdir } from 'node:os';
+import { dirname, join, resolve } from 'node:path';
+import { fileURLToPath, pathToFileURL } from 'node:url';
+
+const here = dirname(fileURLToPath(import.meta.url));
+const web = resolve(here, '../../scenes/web');
+const [page_path, shot_path] = process.argv.slice(2);
+if (!page_path || !shot_path) {
+  console.error('usage: node replay_check.mjs PAGE.html SCREENSHOT.png');
+  process.exit(2);
+}
+const chromium_path = process.env.CHROMIUM || '/usr/bin/chromium';
+if (!existsSync(chromium_path)) {
+  console.error(`${chromium_path} is missing: run scripts/setup.sh (it installs Debian's chromium)`);
+  process.exit(1);
+}
+let playwright;
+try {
+  playwright = createRequire(join(web, 'package.json'))('playwright-core');
+} catch (e) {
+  console.error(`playwright-core is not installed in ${web}/node_modules: run scripts/setup.sh (${e.message})`);
+  process.exit(1);
+}
+
+const profile = mkdtempSync(join(tmpdir(), 'replay-chromium-'));
+// A fresh, empty profile; without the background-networking flags Chromium stalls on a
+// closed network.
+const browser = await playwright.chromium.launchPersistentContext(profile, {
+  executablePath: chromium_path,
+  headless: true,
+  viewport: { width: 1280, height: 720 },
+  args: [
+    '--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run', '--disable-background-networking',
+    '--disable-component-update', '--disable-sync', '--use-angle=swiftshader', '--enable-unsafe-swiftshader',
+  ],
+});
+const problems = [];
+let result = {};
+try {
+  const page = browser.pages()[0] || (await browser.newPage());
+  page.on('console', (m) => { if (m.type() === 'error') problems.push(`console error: ${m.text()}`); });
+  page.on('pageerror', (e) => problems.push(`page error: ${e.message}`));
+  await page.goto(pathToFileURL(resolve(page_path)).href);
+  await page.waitForFunction(() => window.__replay && window.__replay.ready && window.__replay.drawn > 2, null,
+    { timeout: 60_000 });
+  const first = await page.evaluate(() => ({ ...window.__replay }));
+  await page.waitForTimeout(1500);
+  const later = await page.evaluate(() => ({ ...window.__replay }));
+  const shot = await page.screenshot({ path: shot_path });
+  // Count distinct colours in the 3-D view (the canvas) by reading it back in the page.
+  const colours = await page.evaluate(() => {
+    const src = document.querySelector('#view canvas');
+    const c = document.createElement('canvas');
+    c.width = 256; c.height = 144;
+    const ctx = c.getContext('2d');
+    ctx.drawImage(src, 0, 0, c.width, c.height);
+    const px = ctx.getImageData(0, 0, c.width, c.height).data;
+    const seen = new Set();
+    for (let i = 0; i < px.length; i += 4) seen.add((px[i] << 16) | (px[i + 1] << 8) | px[i + 2]);
+    return seen.size;
+  });
+  result = { frames: first.frames, first_frame: first.frame, later_frame: later.frame, drawn: later.drawn,
+    playing: later.playing, colours, screenshot_bytes: shot.length };
+  if (colours < 50) problems.push(`the canvas looks blank: ${colours} distinct colours`);
+  if (!(later.frame !== first.frame && later.drawn > first.drawn)) {
+    problems.push(`playback did not advance: frame ${first.frame} → ${later.frame}, draws ${first.drawn} → ${later.drawn}`);
+  }
+  if (!later.playing) problems.push('the page is not playing');
+} catch (e) {
+  problems.push(`${e.message}`);
+} finally {
+  await browser.close();
+  rmSync(profile, { recursive: true, force: true });
+}
+console.log(JSON.stringify(result));
+if (problems.length) {
+  console.error(problems.join('\n'));
+  process.exit(1);
+}

@@ -1,0 +1,63 @@
+//! The replay page in a real browser: a short real rollout (the committed sit skill started from
+//! a turn's end pose, with the chair and the reference ghost) is recorded, written as HTML by
+//! the CLI, and opened in headless Chromium
+//! (Debian's `chromium`, driven by `playwright-core`; both installed by `scripts/setup.sh`).
+//! The page must draw its canvas, advance its timeline and log no error. The screenshot is
+//! kept as `target/test-artifacts/replay.png`.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+const SETUP: &str = "run `bash scripts/setup.sh` (it installs Debian's chromium and runs `npm ci` in scenes/web)";
+
+fn artifacts() -> PathBuf {
+    // CARGO_TARGET_TMPDIR is <target>/tmp.
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).parent().expect("target dir").join("test-artifacts");
+    std::fs::create_dir_all(&dir).expect("artifact folder");
+    dir
+}
+
+#[test]
+fn replay_page_draws_plays_and_logs_no_error() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let chromium = std::env::var("CHROMIUM").unwrap_or_else(|_| "/usr/bin/chromium".into());
+    assert!(Path::new(&chromium).exists(), "{chromium} is missing: {SETUP}");
+    let web = root.join("scenes/web/node_modules");
+    assert!(
+        web.join("three/build/three.module.js").exists() && web.join("playwright-core").exists(),
+        "{} lacks three or playwright-core: {SETUP}",
+        web.display()
+    );
+    let node = Command::new("node").arg("--version").output();
+    assert!(node.is_ok_and(|o| o.status.success()), "node is not installed (Node 18 or newer): {SETUP}");
+
+    let dir = common::temp_dir("replay-browser");
+    let (rec, html) = (dir.join("sit.rec"), dir.join("sit.html"));
+    let spec = root.join("skills/skill/specs/sit.ron");
+    let out = Command::new(env!("CARGO_BIN_EXE_repertoire"))
+        .args(["skill", "play", spec.to_str().unwrap(), "--record", rec.to_str().unwrap()])
+        .args(["--from", "turn_left,turn_right", "--seed", "1"])
+        .args(["--html", html.to_str().unwrap(), "--library", root.join("skills/library").to_str().unwrap()])
+        .output()
+        .expect("run repertoire");
+    assert!(out.status.success(), "skill play failed: {}", String::from_utf8_lossy(&out.stderr));
+    let page = std::fs::read_to_string(&html).expect("the page");
+    assert!(page.contains("id=\"recording\"") && page.contains("REVISION"), "three.js or the data is not inlined");
+    assert!(!page.contains("src=\"http") && !page.contains("src=\"//"), "the page must not load anything");
+
+    let shot = artifacts().join("replay.png");
+    let _ = std::fs::remove_file(&shot);
+    let check = Command::new("node")
+        .arg(root.join("tests/browser/replay_check.mjs"))
+        .args([&html, &shot])
+        .env("CHROMIUM", &chromium)
+        .output()
+        .expect("run node");
+    let stdout = String::from_utf8_lossy(&check.stdout);
+    let stderr = String::from_utf8_lossy(&check.stderr);
+    assert!(check.status.success(), "the replay page failed in Chromium:\n{stderr}\n{stdout}");
+    assert!(std::fs::metadata(&shot).is_ok_and(|m| m.len() > 10_000), "no screenshot at {}", shot.display());
+    println!("{stdout}screenshot: {}", shot.display());
+}
