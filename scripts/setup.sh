@@ -8,7 +8,8 @@
 #  3. the replay page's npm packages (three.js, inlined into every replay page; playwright-core,
 #     which drives the browser test), by `npm ci` in scenes/web from its committed lock file;
 #  4. Debian's `chromium` for that test (apt-get, as root or through sudo), if /usr/bin/chromium is
-#     missing.
+#     missing, and Debian's DejaVu fonts (`fonts-dejavu-core`) for chart text, if no font the
+#     report crate looks for is present.
 # Re-running it is a no-op once everything is in place.
 set -euo pipefail
 
@@ -44,6 +45,22 @@ web_and_browser() {
       echo "setup: ${CHROMIUM:-/usr/bin/chromium} is missing and cannot be installed here (needs apt-get as root or sudo);" \
         "install chromium, or set CHROMIUM to a Chromium binary, for the replay browser test" >&2
     fi
+  fi
+  # Chart text (report/src/lib.rs FONT_CANDIDATES, or $REPERTOIRE_FONT).
+  local font
+  for font in "${REPERTOIRE_FONT:-}" /usr/share/fonts/truetype/dejavu/DejaVuSans.ttf \
+    /usr/share/fonts/truetype/liberation/LiberationSans-Regular.ttf /usr/share/fonts/TTF/DejaVuSans.ttf \
+    /usr/share/fonts/dejavu/DejaVuSans.ttf; do
+    [ -n "$font" ] && [ -f "$font" ] && return 0
+  done
+  local sudo=""
+  [ "$(id -u)" = 0 ] || { command -v sudo >/dev/null && sudo -n true 2>/dev/null && sudo="sudo"; } || true
+  if command -v apt-get >/dev/null && { [ "$(id -u)" = 0 ] || [ -n "$sudo" ]; }; then
+    echo "setup: installing Debian's DejaVu fonts for chart text (apt-get install fonts-dejavu-core)" >&2
+    $sudo apt-get update -qq >&2
+    DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq fonts-dejavu-core >&2
+  else
+    echo "setup: no TrueType font for chart text; install fonts-dejavu-core or set REPERTOIRE_FONT to a .ttf" >&2
   fi
 }
 

@@ -49,6 +49,7 @@ fn report_gathers_a_meta_run_and_its_evaluation() {
     let md = std::fs::read_to_string(eval.join("report/index.md")).unwrap();
     assert!(md.contains("## Evaluation") && md.contains("| front |") && md.contains("heatmap.png"), "{md}");
     assert!(eval.join("report/heatmap.png").exists());
+    assert!(md.contains("## Replays") && md.contains(".rec"), "the worst trials are listed: {md}");
 
     // A folder with nothing to report says what it looked for.
     let empty = dir.join("empty");

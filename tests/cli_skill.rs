@@ -129,7 +129,17 @@ fn the_ablation_study_plans_one_described_run_per_variant_and_seed() {
     let dir = common::temp_dir("cli-ablate");
     let spec = Path::new(env!("CARGO_MANIFEST_DIR")).join("meta/ablations/sit.ron");
     let text = ok(&repertoire(&["ablate", spec.to_str().unwrap(), "--plan-only", "--out", dir.to_str().unwrap()]));
-    assert!(text.contains("18 runs planned"), "{text}");
+    assert!(text.contains("21 runs planned"), "{text}");
+    let plan = std::fs::read_to_string(dir.join("runs/flat--the-sit-policy-alone-s1/plan.ron")).expect("plan file");
+    assert!(plan.contains("\"--chain\"") && plan.contains("\"sit\""), "{plan}");
+    // The budget can be overridden for a quick pass.
+    let quick = dir.join("quick");
+    let text = ok(&repertoire(&[
+        "ablate", spec.to_str().unwrap(), "--plan-only", "--out", quick.to_str().unwrap(), "--seeds", "7", "--iterations", "5",
+    ]));
+    assert!(text.contains("7 runs planned"), "{text}");
+    let plan = std::fs::read_to_string(quick.join("runs/full-model-s7/plan.ron")).expect("plan file");
+    assert!(plan.contains("\"--iterations\",\n") || plan.contains("\"5\""), "{plan}");
     let plan = std::fs::read_to_string(dir.join("runs/fixed-order-walk-l-turn-sit-s2/plan.ron")).expect("plan file");
     assert!(
         plan.contains("\"--chain\"") && plan.contains("\"walk,turn_left,sit\"") && plan.contains("\"--seed\""),

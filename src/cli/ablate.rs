@@ -122,13 +122,30 @@ pub fn plan(ab: &Ablation, spec_dir: &Path, out: &Path) -> Vec<Plan> {
     plans
 }
 
+/// Command-line overrides of a study's budget.
+#[derive(Debug, Clone, Default)]
+pub struct Overrides {
+    /// Seeds instead of the study's (when not empty).
+    pub seeds: Vec<u64>,
+    /// Meta-controller iterations per run.
+    pub iterations: Option<usize>,
+    /// Evaluation trials per zone.
+    pub trials: Option<usize>,
+}
+
 /// Runs (or only plans) the study in `spec` into `out`, then writes the table.
-pub fn run(spec: &Path, out: &Path, plan_only: bool) -> Result<()> {
+pub fn run(spec: &Path, out: &Path, plan_only: bool, overrides: &Overrides) -> Result<()> {
     let text = std::fs::read_to_string(spec).with_context(|| format!("reading {}", spec.display()))?;
     let ab: Ablation = ron::Options::default()
         .with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME)
         .from_str(&text)
         .map_err(|e| anyhow::anyhow!("{}:{}:{}: {}", spec.display(), e.span.start.line, e.span.start.col, e.code))?;
+    let mut ab = ab;
+    if !overrides.seeds.is_empty() {
+        ab.seeds = overrides.seeds.clone();
+    }
+    ab.iterations = overrides.iterations.unwrap_or(ab.iterations);
+    ab.trials = overrides.trials.unwrap_or(ab.trials);
     if ab.seeds.is_empty() || ab.variants.is_empty() {
         bail!("{}: an ablation needs at least one seed and one variant", spec.display());
     }

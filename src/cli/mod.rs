@@ -59,6 +59,15 @@ pub enum Command {
         /// Only write the plan files (for a scheduler), run nothing.
         #[arg(long)]
         plan_only: bool,
+        /// Override the study's seeds (e.g. 1 for a quick pass).
+        #[arg(long, value_delimiter = ',')]
+        seeds: Vec<u64>,
+        /// Override the study's meta-controller iterations per run.
+        #[arg(long)]
+        iterations: Option<usize>,
+        /// Override the study's evaluation trials per zone.
+        #[arg(long)]
+        trials: Option<usize>,
     },
     /// Gather a run's charts (PNG + SVG) and tables into DIR/report/index.md and index.html:
     /// learning curves, curriculum schedule, success map, transition matrices, ablation table.
@@ -79,7 +88,9 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Meta(cmd) => meta::run(cmd),
         Command::Replay(args) => replay::replay(args),
         Command::Export(args) => replay::export(args),
-        Command::Ablate { spec, out, plan_only } => ablate::run(&spec, &out, plan_only),
+        Command::Ablate { spec, out, plan_only, seeds, iterations, trials } => {
+            ablate::run(&spec, &out, plan_only, &ablate::Overrides { seeds, iterations, trials })
+        }
         Command::Report { dir } => {
             let page = report::run(&dir)?;
             println!("report written to {}", page.display());

@@ -104,6 +104,30 @@ pub fn run(dir: &Path) -> Result<PathBuf> {
         sections.push(Section { title: "Evaluation".into(), text: r.markdown(), charts });
     }
 
+    let worst = dir.join("worst");
+    if worst.is_dir() {
+        let mut recs: Vec<PathBuf> = std::fs::read_dir(&worst)
+            .with_context(|| format!("{}: cannot list", worst.display()))?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.extension().is_some_and(|e| e == "rec"))
+            .collect();
+        recs.sort();
+        if !recs.is_empty() {
+            let mut text = String::from("The worst trials, recorded as they ran:\n\n");
+            for rec in &recs {
+                let page = rec.with_extension("html");
+                let name = rec.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+                if page.exists() {
+                    let _ = writeln!(text, "- [{name}](../worst/{}) (replay page)", page.file_name().unwrap_or_default().to_string_lossy());
+                } else {
+                    let _ = writeln!(text, "- `{name}`");
+                }
+            }
+            let _ = writeln!(text, "\nMake or refresh the pages with `repertoire replay {}`.", dir.display());
+            sections.push(Section { title: "Replays".into(), text, charts: Vec::new() });
+        }
+    }
+
     let table = dir.join("table.md");
     if table.exists() {
         let text = std::fs::read_to_string(&table).with_context(|| format!("{}: cannot read", table.display()))?;
@@ -141,6 +165,21 @@ fn markdown(title: &str, sections: &[Section], out: &Path) -> String {
     md
 }
 
+/// `[text](href)` as an HTML link.
+fn links(s: &str) -> String {
+    let mut out = String::new();
+    let mut rest = s;
+    while let Some(open) = rest.find('[') {
+        let Some(mid) = rest[open..].find("](").map(|m| open + m) else { break };
+        let Some(close) = rest[mid..].find(')').map(|c| mid + c) else { break };
+        out.push_str(&rest[..open]);
+        let _ = write!(out, "<a href=\"{}\">{}</a>", &rest[mid + 2..close], &rest[open + 1..mid]);
+        rest = &rest[close + 1..];
+    }
+    out.push_str(rest);
+    out
+}
+
 fn escape(s: &str) -> String {
     s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
 }
@@ -152,7 +191,7 @@ fn text_html(md: &str) -> String {
     let mut in_table = false;
     let mut in_list = false;
     let inline = |s: &str| {
-        let e = escape(s);
+        let e = links(&escape(s));
         let mut out = String::new();
         for (i, part) in e.split('`').enumerate() {
             if i % 2 == 1 {
