@@ -398,7 +398,7 @@ impl Task for ImitationTask {
             _ => [0.0; 3],
         };
         self.place_seat(world);
-        if let Some((prop, _)) = settings.seat {
+        if let (Some((prop, _)), Goal::Seat { clear_start: true, .. }) = (settings.seat, &settings.goal) {
             self.separate_from_seat(world, prop);
         }
         self.cycles = 0;

@@ -126,6 +126,10 @@ pub enum Goal {
         /// chair's facing): where the chair's legs and back clear the clip's legs and torso.
         #[serde(default)]
         forward_m: f64,
+        /// Start every episode clear of the chair: a seated start whose pelvis sinks into the
+        /// seat is lifted onto it, a chair overlapping a standing start is pushed back (≤ 20 cm).
+        #[serde(default)]
+        clear_start: bool,
     },
 }
 
