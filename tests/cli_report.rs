@@ -5,17 +5,8 @@
 mod common;
 
 use std::path::Path;
-use std::process::{Command, Output};
 
-fn repertoire(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_repertoire")).args(args).output().expect("run repertoire")
-}
-
-fn ok(out: &Output) -> String {
-    let text = String::from_utf8_lossy(&out.stdout).into_owned();
-    assert!(out.status.success(), "exit {:?}\n{text}\n{}", out.status, String::from_utf8_lossy(&out.stderr));
-    text
-}
+use common::{ok, repertoire};
 
 #[test]
 fn report_gathers_a_meta_run_and_its_evaluation() {
@@ -24,10 +15,32 @@ fn report_gathers_a_meta_run_and_its_evaluation() {
     let (meta, run, eval) = (dir.join("meta"), dir.join("run"), dir.join("eval"));
     let s = |p: &Path| p.to_str().unwrap().to_string();
     ok(&repertoire(&[
-        "meta", "train", "--library", &s(&lib), "--out", &s(&meta), "--run-dir", &s(&run), "--iterations", "2", "--envs", "4",
+        "meta",
+        "train",
+        "--library",
+        &s(&lib),
+        "--out",
+        &s(&meta),
+        "--run-dir",
+        &s(&run),
+        "--iterations",
+        "2",
+        "--envs",
+        "4",
     ]));
     ok(&repertoire(&[
-        "meta", "eval", "--library", &s(&lib), "--meta", &s(&meta), "--trials", "3", "--batch", "3", "--out", &s(&eval),
+        "meta",
+        "eval",
+        "--library",
+        &s(&lib),
+        "--meta",
+        &s(&meta),
+        "--trials",
+        "3",
+        "--batch",
+        "3",
+        "--out",
+        &s(&eval),
     ]));
     for f in ["heatmap.png", "heatmap.svg", "report.json", "trials.csv"] {
         assert!(eval.join(f).exists(), "meta eval wrote no {f}");

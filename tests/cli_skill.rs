@@ -5,17 +5,8 @@
 mod common;
 
 use std::path::Path;
-use std::process::{Command, Output};
 
-fn repertoire(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_repertoire")).args(args).output().expect("run repertoire")
-}
-
-fn ok(out: &Output) -> String {
-    let text = String::from_utf8_lossy(&out.stdout).into_owned();
-    assert!(out.status.success(), "exit {:?}\n{text}\n{}", out.status, String::from_utf8_lossy(&out.stderr));
-    text
-}
+use common::{ok, repertoire};
 
 #[test]
 fn train_eval_and_finetune_a_chain() {
@@ -135,7 +126,15 @@ fn the_ablation_study_plans_one_described_run_per_variant_and_seed() {
     // The budget can be overridden for a quick pass.
     let quick = dir.join("quick");
     let text = ok(&repertoire(&[
-        "ablate", spec.to_str().unwrap(), "--plan-only", "--out", quick.to_str().unwrap(), "--seeds", "7", "--iterations", "5",
+        "ablate",
+        spec.to_str().unwrap(),
+        "--plan-only",
+        "--out",
+        quick.to_str().unwrap(),
+        "--seeds",
+        "7",
+        "--iterations",
+        "5",
     ]));
     assert!(text.contains("7 runs planned"), "{text}");
     let plan = std::fs::read_to_string(quick.join("runs/full-model-s7/plan.ron")).expect("plan file");

@@ -321,11 +321,7 @@ impl MetaReport {
             );
         }
         let json = serde_json_string(self);
-        let files = [
-            ("report.md", self.markdown()),
-            ("trials.csv", csv),
-            ("report.json", json),
-        ];
+        let files = [("report.md", self.markdown()), ("trials.csv", csv), ("report.json", json)];
         for (name, text) in files {
             let path = dir.join(name);
             let partial = dir.join(format!("{name}.partial"));

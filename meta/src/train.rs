@@ -117,8 +117,16 @@ pub fn train(setup: Arc<MetaSetup>, opts: &MetaTrainOptions) -> Result<(MetaMani
         }
         if let (Some(c), Some(f)) = (&curriculum, &mut schedule) {
             let rate = c.window_rate().map_or_else(String::new, |r| format!("{r:.4}"));
-            writeln!(f, "{},{},{},{},{rate},{}", m.iteration, c.episodes(), c.current(), c.current_index(), c.advance_at())
-                .map_err(|e| MetaError::Invalid(format!("{}: {e}", schedule_path.display())))?;
+            writeln!(
+                f,
+                "{},{},{},{},{rate},{}",
+                m.iteration,
+                c.episodes(),
+                c.current(),
+                c.current_index(),
+                c.advance_at()
+            )
+            .map_err(|e| MetaError::Invalid(format!("{}: {e}", schedule_path.display())))?;
         }
         tracing::info!(
             iteration = m.iteration,

@@ -168,7 +168,8 @@ pub struct Series {
 
 /// Axis range over all finite values, padded; a flat or empty range still gets a height.
 fn range(values: impl Iterator<Item = f64>) -> (f64, f64) {
-    let (lo, hi) = values.filter(|v| v.is_finite()).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+    let (lo, hi) =
+        values.filter(|v| v.is_finite()).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
     if !lo.is_finite() {
         return (0.0, 1.0);
     }
@@ -255,7 +256,8 @@ pub fn learning_curves(metrics: &Path, stem: &Path) -> Result<Vec<PathBuf>> {
     let len = t.column("mean_length")?;
     let term = t.column("termination_rate")?;
     let pair = |ys: &[f64]| steps.iter().zip(ys).map(|(&x, &y)| (x, y)).collect::<Vec<_>>();
-    let name = metrics.parent().and_then(Path::file_name).map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+    let name =
+        metrics.parent().and_then(Path::file_name).map_or_else(String::new, |n| n.to_string_lossy().into_owned());
     let mut out = Vec::new();
     let ret_stem = suffixed(stem, "-return");
     let series_ret = [Series { name: "mean return".into(), points: pair(&ret) }];
@@ -273,7 +275,11 @@ pub fn learning_curves(metrics: &Path, stem: &Path) -> Result<Vec<PathBuf>> {
             let col = t.column(h)?;
             Ok(Series {
                 name: n.to_string(),
-                points: steps.iter().zip(col.iter().zip(&len)).map(|(&x, (&s, &l))| (x, if l > 0.0 { s / l } else { f64::NAN })).collect(),
+                points: steps
+                    .iter()
+                    .zip(col.iter().zip(&len))
+                    .map(|(&x, (&s, &l))| (x, if l > 0.0 { s / l } else { f64::NAN }))
+                    .collect(),
             })
         })
         .collect::<Result<_>>()?;
@@ -373,7 +379,13 @@ fn mix(a: RGBColor, b: RGBColor, t: f64) -> RGBColor {
 
 /// A matrix of transition counts, rows `from`, columns `to`, each cell shaded by its share of
 /// its row and labelled with its count.
-pub fn transition_matrix(stem: &Path, title: &str, rows: &[String], cols: &[String], counts: &[Vec<u32>]) -> Result<[PathBuf; 2]> {
+pub fn transition_matrix(
+    stem: &Path,
+    title: &str,
+    rows: &[String],
+    cols: &[String],
+    counts: &[Vec<u32>],
+) -> Result<[PathBuf; 2]> {
     if counts.len() != rows.len() || counts.iter().any(|r| r.len() != cols.len()) {
         return Err(ReportError::Invalid {
             path: stem.to_path_buf(),
@@ -399,10 +411,15 @@ pub fn transition_matrix(stem: &Path, title: &str, rows: &[String], cols: &[Stri
                 let x = label_w + j as i32 * cw;
                 let share = if total > 0 { f64::from(n) / f64::from(total) } else { 0.0 };
                 let fill = mix(RGBColor(250, 250, 250), RGBColor(31, 119, 180), share);
-                area.draw(&Rectangle::new([(x, y), (x + cw - 4, y + ch - 4)], fill.filled())).map_err(|e| e.to_string())?;
-                let ink = if share > 0.55 { WHITE } else { BLACK };
-                area.draw(&Text::new(n.to_string(), (x + 10, y + ch / 2 - 8), ("sans-serif", 14).into_font().color(&ink)))
+                area.draw(&Rectangle::new([(x, y), (x + cw - 4, y + ch - 4)], fill.filled()))
                     .map_err(|e| e.to_string())?;
+                let ink = if share > 0.55 { WHITE } else { BLACK };
+                area.draw(&Text::new(
+                    n.to_string(),
+                    (x + 10, y + ch / 2 - 8),
+                    ("sans-serif", 14).into_font().color(&ink),
+                ))
+                .map_err(|e| e.to_string())?;
             }
         }
         Ok(())
@@ -423,7 +440,12 @@ pub struct CurriculumPoint {
 
 /// The zone curriculum over training: the newest open zone as a step line and the windowed
 /// success rate with the advance threshold.
-pub fn curriculum_schedule(stem: &Path, zones: &[String], threshold: f64, points: &[CurriculumPoint]) -> Result<[PathBuf; 2]> {
+pub fn curriculum_schedule(
+    stem: &Path,
+    zones: &[String],
+    threshold: f64,
+    points: &[CurriculumPoint],
+) -> Result<[PathBuf; 2]> {
     let max_it = points.iter().map(|p| p.iteration).fold(1.0, f64::max);
     render!(stem, SIZE, |area| {
         let mut chart = ChartBuilder::on(area)
@@ -449,7 +471,11 @@ pub fn curriculum_schedule(stem: &Path, zones: &[String], threshold: f64, points
             .y_labels(zones.len().max(2))
             .y_label_formatter(&move |v| {
                 let k = v.round();
-                if (v - k).abs() < 1e-6 && k >= 0.0 { names.get(k as usize).cloned().unwrap_or_default() } else { String::new() }
+                if (v - k).abs() < 1e-6 && k >= 0.0 {
+                    names.get(k as usize).cloned().unwrap_or_default()
+                } else {
+                    String::new()
+                }
             })
             .label_style(("sans-serif", 12))
             .draw()
@@ -459,7 +485,8 @@ pub fn curriculum_schedule(stem: &Path, zones: &[String], threshold: f64, points
             .map_err(|e| e.to_string())?
             .label(format!("advance at {:.0}%", 100.0 * threshold))
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], RGBColor(60, 60, 60).stroke_width(2)));
-        let rate: Vec<(f64, f64)> = points.iter().filter(|p| p.success.is_finite()).map(|p| (p.iteration, p.success)).collect();
+        let rate: Vec<(f64, f64)> =
+            points.iter().filter(|p| p.success.is_finite()).map(|p| (p.iteration, p.success)).collect();
         chart
             .draw_series(LineSeries::new(rate, COLOURS[0].stroke_width(2)))
             .map_err(|e| e.to_string())?

@@ -2,7 +2,9 @@
 
 use std::path::{Path, PathBuf};
 
-use repertoire_report::{CurriculumPoint, ReportError, StartPoint, learning_curves, read_table, success_map, transition_matrix};
+use repertoire_report::{
+    CurriculumPoint, ReportError, StartPoint, learning_curves, read_table, success_map, transition_matrix,
+};
 
 fn temp_dir(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("repertoire-report-{name}-{}", std::process::id()));
@@ -24,7 +26,15 @@ fn learning_curves_draw_return_terminations_and_every_term() {
     let mut csv = String::from("iteration,global_step,mean_return,mean_length,termination_rate,term_pose,term_goal\n");
     for i in 0..50 {
         let x = f64::from(i);
-        csv += &format!("{i},{},{},{},{},{},{}\n", 4096 * i, 10.0 + x, 100.0 + x, 1.0 - x / 50.0, 0.5 * (100.0 + x), 0.2 * (100.0 + x));
+        csv += &format!(
+            "{i},{},{},{},{},{},{}\n",
+            4096 * i,
+            10.0 + x,
+            100.0 + x,
+            1.0 - x / 50.0,
+            0.5 * (100.0 + x),
+            0.2 * (100.0 + x)
+        );
     }
     csv += "50,204800,NaN,,,,\n"; // an iteration where no episode ended
     std::fs::write(dir.join("metrics.csv"), csv).unwrap();
@@ -46,7 +56,8 @@ fn learning_curves_draw_return_terminations_and_every_term() {
 fn a_malformed_metrics_file_is_refused_naming_the_line() {
     let dir = temp_dir("bad");
     let path = dir.join("metrics.csv");
-    std::fs::write(&path, "iteration,global_step,mean_return,mean_length,termination_rate\n0,1,2,3,4\n1,2,3\n").unwrap();
+    std::fs::write(&path, "iteration,global_step,mean_return,mean_length,termination_rate\n0,1,2,3,4\n1,2,3\n")
+        .unwrap();
     let err = learning_curves(&path, &dir.join("x")).unwrap_err();
     assert!(matches!(err, ReportError::Invalid { .. }));
     let msg = err.to_string();
@@ -89,7 +100,11 @@ fn curriculum_schedule_shows_the_switches() {
     let dir = temp_dir("curriculum");
     let zones: Vec<String> = ["front", "sides", "behind"].map(String::from).to_vec();
     let points: Vec<CurriculumPoint> = (0..100)
-        .map(|i| CurriculumPoint { iteration: f64::from(i), zone: (i / 40) as usize, success: f64::from(i % 40) / 40.0 })
+        .map(|i| CurriculumPoint {
+            iteration: f64::from(i),
+            zone: (i / 40) as usize,
+            success: f64::from(i % 40) / 40.0,
+        })
         .collect();
     let [png, svg] = repertoire_report::curriculum_schedule(&dir.join("curriculum"), &zones, 0.8, &points).unwrap();
     assert!(ink(&png) > 0.01);

@@ -35,7 +35,9 @@ pub fn run(dir: &Path) -> Result<PathBuf> {
         let files = learning_curves(&metrics, &out.join("curves"))?;
         let t = read_table(&metrics)?;
         let last = |c: &str| t.column(c).ok().and_then(|v| v.iter().rev().copied().find(|x| x.is_finite()));
-        let mut text = String::from("| iterations | environment steps | last mean return | last early-termination rate |\n|---:|---:|---:|---:|\n");
+        let mut text = String::from(
+            "| iterations | environment steps | last mean return | last early-termination rate |\n|---:|---:|---:|---:|\n",
+        );
         let _ = writeln!(
             text,
             "| {} | {} | {:.2} | {:.1}% |",
@@ -94,7 +96,8 @@ pub fn run(dir: &Path) -> Result<PathBuf> {
     let report = [dir.join("report.json"), dir.join("eval").join("report.json")].into_iter().find(|p| p.exists());
     if let Some(path) = report {
         let text = std::fs::read_to_string(&path).with_context(|| format!("{}: cannot read", path.display()))?;
-        let r: MetaReport = serde_json::from_str(&text).with_context(|| format!("{}: not an evaluation report", path.display()))?;
+        let r: MetaReport =
+            serde_json::from_str(&text).with_context(|| format!("{}: not an evaluation report", path.display()))?;
         r.plot(&out)?;
         let mut charts = vec![[out.join("heatmap.png"), out.join("heatmap.svg")]];
         for (side, _) in &r.transitions {
@@ -118,7 +121,11 @@ pub fn run(dir: &Path) -> Result<PathBuf> {
                 let page = rec.with_extension("html");
                 let name = rec.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned());
                 if page.exists() {
-                    let _ = writeln!(text, "- [{name}](../worst/{}) (replay page)", page.file_name().unwrap_or_default().to_string_lossy());
+                    let _ = writeln!(
+                        text,
+                        "- [{name}](../worst/{}) (replay page)",
+                        page.file_name().unwrap_or_default().to_string_lossy()
+                    );
                 } else {
                     let _ = writeln!(text, "- `{name}`");
                 }

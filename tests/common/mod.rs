@@ -30,3 +30,15 @@ pub fn model_from(text: &str) -> Arc<WorldModel> {
     let file = ScenarioFile::parse(Path::new("test.ron"), text.to_string()).expect("scenario parses");
     Arc::new(WorldModel::build(file).expect("scene builds"))
 }
+
+/// Runs the `repertoire` binary built for these tests with `args`.
+pub fn repertoire(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_repertoire")).args(args).output().expect("run repertoire")
+}
+
+/// The standard output of a run that must have succeeded (else the test fails with both streams).
+pub fn ok(out: &std::process::Output) -> String {
+    let text = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(out.status.success(), "exit {:?}\n{text}\n{}", out.status, String::from_utf8_lossy(&out.stderr));
+    text
+}

@@ -127,7 +127,9 @@ impl ImitationTask {
         if let Some((prop, [sx, sy, syaw])) = self.settings.seat {
             let [x, y] = self.to_world([sx, sy]);
             let [dx, dy, dyaw] = self.seat_offset;
-            world.move_prop(prop, x + dx, y + dy, wrap_angle(syaw + self.yaw + dyaw)).expect("the seat prop is validated");
+            world
+                .move_prop(prop, x + dx, y + dy, wrap_angle(syaw + self.yaw + dyaw))
+                .expect("the seat prop is validated");
         }
     }
 
@@ -157,7 +159,9 @@ impl ImitationTask {
             }
             let pl = world.placements()[prop];
             let (s, c) = pl.yaw.sin_cos();
-            world.move_prop(prop, pl.pos[0] - 0.02 * c, pl.pos[1] - 0.02 * s, pl.yaw).expect("the seat prop is validated");
+            world
+                .move_prop(prop, pl.pos[0] - 0.02 * c, pl.pos[1] - 0.02 * s, pl.yaw)
+                .expect("the seat prop is validated");
         }
     }
 
@@ -388,7 +392,8 @@ impl Task for ImitationTask {
             Goal::Seat { jitter_m, jitter_deg, .. } if jitter_m > 0.0 || jitter_deg > 0.0 => {
                 // Full jitter while standing, none once seated: the rest of the clip must be
                 // able to make up the difference.
-                let (lo, hi) = r.height.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &h| (a.min(h), b.max(h)));
+                let (lo, hi) =
+                    r.height.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &h| (a.min(h), b.max(h)));
                 let s = if hi > lo { ((r.height[self.phase] - lo) / (hi - lo)).clamp(0.0, 1.0) } else { 1.0 };
                 let radius = s * jitter_m * rng.random_range(0.0f64..=1.0).sqrt();
                 let angle = rng.random_range(-std::f64::consts::PI..std::f64::consts::PI);

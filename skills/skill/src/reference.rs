@@ -122,7 +122,7 @@ impl Reference {
     /// are.
     pub fn lift_low(&mut self, dz: f64) {
         let (lo, hi) = self.height.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &h| (a.min(h), b.max(h)));
-        if !(hi > lo) || dz == 0.0 {
+        if hi <= lo || !hi.is_finite() || dz == 0.0 {
             return;
         }
         let lift: Vec<f64> = self.height.iter().map(|&h| dz * ((hi - h) / (hi - lo)).clamp(0.0, 1.0)).collect();

@@ -244,13 +244,19 @@ fn sit_episodes_start_clear_of_the_chair_with_the_seat_jittered_and_the_seated_c
         // Where the clip's seat would be for this start (no jitter) versus where it is.
         let pl = world.placements()[prop];
         let frame = world.pelvis_frame();
-        let local = repertoire_skill::reference::to_heading(frame.yaw(), [pl.pos[0] - frame.pos[0], pl.pos[1] - frame.pos[1], 0.0]);
+        let local = repertoire_skill::reference::to_heading(
+            frame.yaw(),
+            [pl.pos[0] - frame.pos[0], pl.pos[1] - frame.pos[1], 0.0],
+        );
         let expected = repertoire_skill::reference::to_heading(
             r.heading[f],
             [seat[0] - r.root_pos[f][0], seat[1] - r.root_pos[f][1], 0.0],
         );
         let off = ((local[0] - expected[0]).powi(2) + (local[1] - expected[1]).powi(2)).sqrt();
-        assert!(off < 0.15 + 0.2 + 1e-6, "start frame {f}: chair {off:.3} m from the clip's seat (jitter 0.15, push-back 0.2)");
+        assert!(
+            off < 0.15 + 0.2 + 1e-6,
+            "start frame {f}: chair {off:.3} m from the clip's seat (jitter 0.15, push-back 0.2)"
+        );
         if r.height[f] < 0.65 {
             seated += 1;
         } else if off > 0.02 {
