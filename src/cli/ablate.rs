@@ -177,8 +177,8 @@ pub fn run(spec: &Path, out: &Path, plan_only: bool, overrides: &Overrides) -> R
         return Ok(());
     }
     let (md, csv) = table(&ab, &plans)?;
-    std::fs::write(out.join("table.md"), &md)?;
-    std::fs::write(out.join("table.csv"), csv)?;
+    repertoire_report::write_atomic(&out.join("table.md"), md.as_bytes())?;
+    repertoire_report::write_atomic(&out.join("table.csv"), csv.as_bytes())?;
     print!("{md}");
     println!("\ntable.md and table.csv written to {}", out.display());
     Ok(())
@@ -213,7 +213,12 @@ fn table(ab: &Ablation, plans: &[Plan]) -> Result<(String, String)> {
             let rows: Vec<_> = mine.iter().filter_map(|r| r.zones.iter().find(|row| &row.zone == z)).collect();
             let (sm, ss) = mean_sd(&rows.iter().map(|r| 100.0 * r.success_rate).collect::<Vec<_>>());
             let (dm, ds) = mean_sd(&rows.iter().map(|r| r.min_distance_mean).collect::<Vec<_>>());
-            cells.push(format!("{sm:.1} ± {ss:.1}% / {dm:.2} ± {ds:.2}"));
+            // A spread needs two seeds or more.
+            cells.push(if rows.len() > 1 {
+                format!("{sm:.1} ± {ss:.1}% / {dm:.2} ± {ds:.2}")
+            } else {
+                format!("{sm:.1}% / {dm:.2}")
+            });
             let _ = writeln!(csv, "{},{z},{},{sm:.3},{ss:.3},{dm:.4},{ds:.4}", v.name, mine.len());
         }
         let _ = writeln!(md, "| {} | {} | {} |", v.name, mine.len(), cells.join(" | "));
