@@ -136,8 +136,8 @@ impl ImitationTask {
     /// Starts an episode free of the chair: a pose placed by hand can sink into it (a seated
     /// frame on a lower seat than the clip's, a standing leg inside a chair the jitter moved)
     /// and MuJoCo would shoot it out. A low (seated) frame whose pelvis sinks into the seat
-    /// (the key geom) is lifted onto it; a standing frame that overlaps the chair pushes the chair back along
-    /// its own −x, at most 20 cm.
+    /// (the key geom) is lifted onto it; a standing frame that overlaps the chair pushes the
+    /// chair back along its own −x, at most 20 cm.
     fn separate_from_seat(&mut self, world: &mut World, prop: usize) {
         let r = &self.settings.reference;
         let (lo, hi) = r.height.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &h| (a.min(h), b.max(h)));
