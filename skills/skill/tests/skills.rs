@@ -31,7 +31,7 @@ fn setup(spec: &str, library: &Path) -> SkillSetup {
 
 #[test]
 fn replaying_the_clip_scores_the_maximum_and_diverging_scores_less() {
-    for spec in ["walk.ron", "turn_left.ron", "turn_right.ron", "sit.ron", "sit_jittered.ron"] {
+    for spec in ["walk.ron", "turn_left.ron", "turn_right.ron", "sit.ron", "sit_jittered.ron", "sit_gentle.ron"] {
         let s = setup(spec, &temp("replay"));
         let mut env = s.env();
         let mut task = ImitationTask::new(s.settings.clone());
