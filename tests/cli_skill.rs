@@ -138,7 +138,8 @@ fn the_ablation_study_plans_one_described_run_per_variant_and_seed() {
     ]));
     assert!(text.contains("7 runs planned"), "{text}");
     let plan = std::fs::read_to_string(quick.join("runs/full-model-s7/plan.ron")).expect("plan file");
-    assert!(plan.contains("\"--iterations\",\n") || plan.contains("\"5\""), "{plan}");
+    let compact: String = plan.split_whitespace().collect();
+    assert!(compact.contains("\"--iterations\",\"5\"") && compact.contains("\"--seed\",\"7\""), "{plan}");
     let plan = std::fs::read_to_string(dir.join("runs/fixed-order-walk-l-turn-sit-s2/plan.ron")).expect("plan file");
     assert!(
         plan.contains("\"--chain\"") && plan.contains("\"walk,turn_left,sit\"") && plan.contains("\"--seed\""),
