@@ -166,6 +166,11 @@ pub struct Series {
     pub points: Vec<(f64, f64)>,
 }
 
+/// A legend entry's marker: a short line in the series' style.
+fn legend_line(style: ShapeStyle) -> impl Fn((i32, i32)) -> PathElement<(i32, i32)> {
+    move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], style)
+}
+
 /// Axis range over all finite values, padded; a flat or empty range still gets a height.
 fn range(values: impl Iterator<Item = f64>) -> (f64, f64) {
     let (lo, hi) =
@@ -211,7 +216,7 @@ fn lines<DB: DrawingBackend>(
             .draw_series(LineSeries::new(pts, colour.stroke_width(2)))
             .map_err(|e| e.to_string())?
             .label(s.name.clone())
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], colour.stroke_width(2)));
+            .legend(legend_line(colour.stroke_width(2)));
     }
     if series.len() > 1 {
         chart
@@ -484,14 +489,14 @@ pub fn curriculum_schedule(
             .draw_series(LineSeries::new([(0.0, threshold), (max_it, threshold)], RGBColor(60, 60, 60).stroke_width(2)))
             .map_err(|e| e.to_string())?
             .label(format!("advance at {:.0}%", 100.0 * threshold))
-            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], RGBColor(60, 60, 60).stroke_width(2)));
+            .legend(legend_line(RGBColor(60, 60, 60).stroke_width(2)));
         let rate: Vec<(f64, f64)> =
             points.iter().filter(|p| p.success.is_finite()).map(|p| (p.iteration, p.success)).collect();
         chart
             .draw_series(LineSeries::new(rate, COLOURS[0].stroke_width(2)))
             .map_err(|e| e.to_string())?
             .label("success (window)")
-            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], COLOURS[0].stroke_width(2)));
+            .legend(legend_line(COLOURS[0].stroke_width(2)));
         let mut steps = Vec::new();
         for p in points {
             if let Some(&(_, z)) = steps.last() {
@@ -503,7 +508,7 @@ pub fn curriculum_schedule(
             .draw_secondary_series(LineSeries::new(steps, COLOURS[1].stroke_width(3)))
             .map_err(|e| e.to_string())?
             .label("newest open zone")
-            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], COLOURS[1].stroke_width(3)));
+            .legend(legend_line(COLOURS[1].stroke_width(3)));
         chart
             .configure_series_labels()
             .background_style(WHITE.mix(0.85))

@@ -140,9 +140,7 @@ impl ImitationTask {
     /// chair back along its own −x, at most 20 cm.
     fn separate_from_seat(&mut self, world: &mut World, prop: usize) {
         let r = &self.settings.reference;
-        let (lo, hi) = r.height.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &h| (a.min(h), b.max(h)));
-        let seated = hi > lo && (hi - r.height[self.phase]) / (hi - lo) > 0.5;
-        if seated {
+        if r.lowness(self.phase) > 0.5 {
             let pelvis = world.model().index.pelvis;
             for _ in 0..4 {
                 let depth = world.penetration_with_key_geom(prop, Some(pelvis));
@@ -392,9 +390,7 @@ impl Task for ImitationTask {
             Goal::Seat { jitter_m, jitter_deg, .. } if jitter_m > 0.0 || jitter_deg > 0.0 => {
                 // Full jitter while standing, none once seated: the rest of the clip must be
                 // able to make up the difference.
-                let (lo, hi) =
-                    r.height.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &h| (a.min(h), b.max(h)));
-                let s = if hi > lo { ((r.height[self.phase] - lo) / (hi - lo)).clamp(0.0, 1.0) } else { 1.0 };
+                let s = 1.0 - r.lowness(self.phase);
                 let radius = s * jitter_m * rng.random_range(0.0f64..=1.0).sqrt();
                 let angle = rng.random_range(-std::f64::consts::PI..std::f64::consts::PI);
                 let turn = s * jitter_deg.to_radians() * rng.random_range(-1.0f64..=1.0);

@@ -116,16 +116,21 @@ impl Reference {
         Ok(r)
     }
 
-    /// Raises the root by `dz · s` with `s` running from 0 at the clip's highest pelvis to 1
-    /// at its lowest (velocities follow), so a seated clip rests on a higher seat while the
-    /// standing part is unchanged. Joint angles and pelvis-relative end effectors stay as they
-    /// are.
-    pub fn lift_low(&mut self, dz: f64) {
+    /// How low frame `f` sits in the clip: 0 at its highest pelvis, 1 at its lowest (0 for a
+    /// clip whose pelvis never moves). Sit uses it to tell seated frames from standing ones.
+    pub fn lowness(&self, f: usize) -> f64 {
         let (lo, hi) = self.height.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &h| (a.min(h), b.max(h)));
-        if hi <= lo || !hi.is_finite() || dz == 0.0 {
+        if hi > lo { ((hi - self.height[f]) / (hi - lo)).clamp(0.0, 1.0) } else { 0.0 }
+    }
+
+    /// Raises the root by `dz · lowness` (velocities follow), so a seated clip rests on a higher
+    /// seat while the standing part is unchanged. Joint angles and pelvis-relative end effectors
+    /// stay as they are.
+    pub fn lift_low(&mut self, dz: f64) {
+        if dz == 0.0 {
             return;
         }
-        let lift: Vec<f64> = self.height.iter().map(|&h| dz * ((hi - h) / (hi - lo)).clamp(0.0, 1.0)).collect();
+        let lift: Vec<f64> = (0..self.frames()).map(|f| dz * self.lowness(f)).collect();
         let n = lift.len();
         for f in 0..n {
             self.root_pos[f][2] += lift[f];
