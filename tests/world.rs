@@ -147,12 +147,46 @@ fn props_are_drawn_per_episode_and_rest_where_the_scenario_puts_them() {
         let c = world.contacts();
         assert!(c.prop_on_floor(ball), "the ball lies on the floor");
         assert!(!c.prop_on_floor(crate_), "the crate is on its pedestal");
+        let resting = world.prop_contact_count(crate_, stand);
+        assert!(resting >= 4, "a box resting flat on a pedestal touches it at 4+ points, got {resting}");
+        assert_eq!(world.prop_contact_count(ball, stand), 0);
     }
     masses.dedup();
     assert!(masses.len() > 1, "mass is drawn per episode");
     // The shared model is untouched by a world's draws.
     let nominal = model.mj_model().body_mass()[model.props[crate_].body];
     assert!((nominal - 4.5).abs() < 1e-9, "nominal mass {nominal}");
+}
+
+#[test]
+fn a_free_prop_set_in_flight_follows_its_ballistic_path() {
+    let model = model_from(ALL_PROPS);
+    let [stand, ball] = ["stand", "ball"].map(|n| model.prop_id(n).unwrap());
+    let mut world = model.new_world();
+    let mut rng = StdRng::seed_from_u64(3);
+    world.reset_in_zone("near", &mut rng).unwrap();
+    let spin = [0.0, 0.0, 5.0];
+    world.set_free_prop(ball, [0.0, 2.0, 2.0], [0.0, 0.0, 0.0, 1.0], [2.0, 0.0, 1.0], spin).unwrap();
+    let action = hold(&world);
+    let dt = model.control_dt();
+    let ticks = 12;
+    for _ in 0..ticks {
+        world.step(&action).unwrap();
+    }
+    let t = dt * ticks as f64;
+    let p = world.body_position(model.props[ball].body);
+    let expected = [2.0 * t, 2.0, 2.0 + t - 0.5 * 9.81 * t * t];
+    for k in 0..3 {
+        assert!((p[k] - expected[k]).abs() < 0.01, "axis {k}: {} vs {}", p[k], expected[k]);
+    }
+    // The spin is about world z whatever the ball's orientation (MuJoCo keeps it body-local).
+    let b = model.props[ball].body;
+    let cvel = world.data().cvel()[b];
+    assert!((cvel[2] - 5.0).abs() < 1e-3 && cvel[0].abs() < 1e-3, "angular velocity {cvel:?}");
+    let err = world.set_free_prop(stand, [0.0; 3], [1.0, 0.0, 0.0, 0.0], [0.0; 3], [0.0; 3]).unwrap_err();
+    assert!(err.to_string().contains("fixed"), "{err}");
+    let err = world.set_free_prop(ball, [f64::NAN, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0], [0.0; 3], [0.0; 3]);
+    assert!(err.is_err());
 }
 
 #[test]

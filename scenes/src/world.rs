@@ -409,6 +409,67 @@ impl World {
         Ok(())
     }
 
+    /// Sets free prop `p`'s full state for the rest of the episode: centre `pos`, orientation
+    /// `quat` (w, x, y, z), linear velocity `linvel` and angular velocity `angvel` (world frame,
+    /// m/s and rad/s): a box put into the hands, a thrown ball. Fixed props are refused.
+    pub fn set_free_prop(
+        &mut self,
+        p: usize,
+        pos: [f64; 3],
+        quat: [f64; 4],
+        linvel: [f64; 3],
+        angvel: [f64; 3],
+    ) -> Result<()> {
+        let Some(idx) = self.shared.props.get(p) else {
+            return Err(SceneError::Usage(format!(
+                "set_free_prop: no prop {p}; the scene has {}",
+                self.shared.props.len()
+            )));
+        };
+        let PropMount::Free { qpos, dof } = idx.mount else {
+            return Err(SceneError::Usage(format!("set_free_prop: prop `{}` is fixed in place", idx.name)));
+        };
+        if !pos.iter().chain(&quat).chain(&linvel).chain(&angvel).all(|v| v.is_finite()) {
+            return Err(SceneError::Usage(format!(
+                "set_free_prop: the state of `{}` holds a NaN or infinite value",
+                idx.name
+            )));
+        }
+        let norm = quat.iter().map(|v| v * v).sum::<f64>().sqrt();
+        if norm < 1e-9 {
+            return Err(SceneError::Usage(format!("set_free_prop: zero quaternion for `{}`", idx.name)));
+        }
+        let qp = self.data.qpos_mut();
+        qp[qpos..qpos + 3].copy_from_slice(&pos);
+        for (k, v) in quat.iter().enumerate() {
+            qp[qpos + 3 + k] = v / norm;
+        }
+        // MuJoCo's free-joint velocity: linear in the world frame, angular in the body frame.
+        let q = [quat[0] / norm, quat[1] / norm, quat[2] / norm, quat[3] / norm];
+        let local = rotate_inverse(q, angvel);
+        let qv = self.data.qvel_mut();
+        qv[dof..dof + 3].copy_from_slice(&linvel);
+        qv[dof + 3..dof + 6].copy_from_slice(&local);
+        let placement = &mut self.placements[p];
+        placement.pos = pos;
+        self.data.forward();
+        Ok(())
+    }
+
+    /// Number of contacts between any geoms of props `a` and `b` right now (a box resting on a
+    /// pedestal touches it at four or more points).
+    pub fn prop_contact_count(&self, a: usize, b: usize) -> usize {
+        let gp = &self.shared.geom_prop;
+        self.data
+            .contact()
+            .iter()
+            .filter(|c| {
+                let (p1, p2) = (gp[c.geom[0] as usize], gp[c.geom[1] as usize]);
+                (p1 == Some(a) && p2 == Some(b)) || (p1 == Some(b) && p2 == Some(a))
+            })
+            .count()
+    }
+
     /// Stands the character in the default pose at `(x, y)` on the floor, facing `yaw`
     /// (radians, counter-clockwise from +x), at rest.
     pub fn place_standing(&mut self, x: f64, y: f64, yaw: f64) {
@@ -873,4 +934,16 @@ pub fn step_parallel(worlds: &mut [World], actions: &[f64]) -> Result<()> {
         )));
     }
     worlds.par_iter_mut().zip(actions.par_chunks(dof)).try_for_each(|(w, a)| w.step(a))
+}
+
+/// Rotates world vector `v` into the frame of unit quaternion `q` (w, x, y, z): q⁻¹ v q.
+fn rotate_inverse(q: [f64; 4], v: [f64; 3]) -> [f64; 3] {
+    let (w, x, y, z) = (q[0], -q[1], -q[2], -q[3]);
+    // t = 2 (u × v), v' = v + w t + u × t, with u = (x, y, z).
+    let t = [2.0 * (y * v[2] - z * v[1]), 2.0 * (z * v[0] - x * v[2]), 2.0 * (x * v[1] - y * v[0])];
+    [
+        v[0] + w * t[0] + (y * t[2] - z * t[1]),
+        v[1] + w * t[1] + (z * t[0] - x * t[2]),
+        v[2] + w * t[2] + (x * t[1] - y * t[0]),
+    ]
 }
