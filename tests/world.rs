@@ -5,7 +5,9 @@ mod common;
 use common::{default_model, model_from};
 use rand::SeedableRng;
 use rand::rngs::StdRng;
-use repertoire::scenes::{Feature, ObservationLayout, ScenarioFile, World, WorldModel, step_parallel};
+use repertoire::scenes::{
+    Feature, ObservationLayout, Param, ScenarioFile, ThrowSpec, World, WorldModel, step_parallel,
+};
 use std::sync::Arc;
 
 fn hold(world: &World) -> Vec<f64> {
@@ -187,6 +189,45 @@ fn a_free_prop_set_in_flight_follows_its_ballistic_path() {
     assert!(err.to_string().contains("fixed"), "{err}");
     let err = world.set_free_prop(ball, [f64::NAN, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0], [0.0; 3], [0.0; 3]);
     assert!(err.is_err());
+}
+
+#[test]
+fn a_drawn_throw_reaches_the_catch_point_after_its_flight_time() {
+    let model = model_from(ALL_PROPS);
+    let ball = model.prop_id("ball").unwrap();
+    let mut world = model.new_world();
+    let mut rng = StdRng::seed_from_u64(8);
+    let spec = ThrowSpec::default();
+    spec.validate("default").unwrap();
+    let target = [0.0, 3.0, 1.2];
+    let dt = model.control_dt();
+    for k in 0..6 {
+        world.reset_in_zone("near", &mut rng).unwrap();
+        let throw = spec.sample(target, 0.3 * k as f64, &mut rng);
+        assert!((1.5..=4.5).contains(&throw.v_x) && throw.lateral.abs() <= 0.75);
+        let rise = target[2] - throw.pos[2];
+        assert!((0.1..=0.4).contains(&rise), "the ball rises {rise} m over the flight");
+        throw.launch(&mut world, ball).unwrap();
+        let action = hold(&world);
+        let ticks = (throw.t_hit / dt).round() as usize;
+        for _ in 0..ticks {
+            world.step(&action).unwrap();
+        }
+        let t = ticks as f64 * dt;
+        let p = world.body_position(model.props[ball].body);
+        // Arrival height: the launch height plus d_z, up to the tick rounding of t_hit.
+        let vz = throw.linvel[2];
+        let expected_z = throw.pos[2] + vz * t - 0.5 * 9.81 * t * t;
+        assert!((p[2] - expected_z).abs() < 0.02, "throw {k}: z {} vs {expected_z}", p[2]);
+        assert!((p[2] - target[2]).abs() < 0.06 + 2.0 * vz.abs() * dt, "throw {k}: arrives at z {}", p[2]);
+        // Horizontally: over the catch point's line, off it sideways by lateral·t_hit.
+        let along = (p[0] - target[0]) * (0.3 * k as f64).cos() + (p[1] - target[1]) * (0.3 * k as f64).sin();
+        assert!(along.abs() < throw.v_x * dt + 0.01, "throw {k}: {along} m short of the catch line");
+        let side = ((p[0] - target[0]).powi(2) + (p[1] - target[1]).powi(2) - along * along).max(0.0).sqrt();
+        assert!((side - throw.lateral.abs() * t).abs() < 0.02, "throw {k}: sideways {side}");
+    }
+    let bad = ThrowSpec { v_x: Param::Fixed(0.0), ..ThrowSpec::default() };
+    assert!(bad.validate("toss.ron").unwrap_err().contains("v_x"));
 }
 
 #[test]

@@ -15,6 +15,7 @@ pub mod param;
 pub mod record;
 pub mod replay;
 pub mod scenario;
+pub mod throw;
 pub mod world;
 
 pub use body::{BodyDef, BodyIndex, BodyMap};
@@ -23,6 +24,7 @@ pub use obs::{Feature, ObservationLayout};
 pub use param::Param;
 pub use record::{Annotation, RecordOptions, Recorder, Recording};
 pub use scenario::{Prop, Scenario, ScenarioFile};
+pub use throw::{Throw, ThrowSpec};
 pub use world::{Contacts, World, WorldModel, step_parallel};
 
 /// The MuJoCo version this build links against (e.g. "3.17.0").
