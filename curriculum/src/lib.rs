@@ -2,7 +2,8 @@
 //!
 //! [`ZoneCurriculum`]: training starts in the scenario's easiest spawn zone and moves to the next
 //! when the success rate over the last `window` episodes reaches `advance_at` (the sitting
-//! paper's front → sides → behind schedule). Every switch is recorded with the episode count at
+//! paper's front → sides → behind schedule); zones already passed stay open unless the scenario
+//! says `keep_passed: false`. Every switch is recorded with the episode count at
 //! which it happened, so a run's schedule can be read back. Reference-state initialisation and
 //! end-pose pools live with the skills (`repertoire_skill::imitation`, `repertoire_skill::pool`).
 
@@ -32,13 +33,15 @@ pub struct ZoneCurriculum {
     window: usize,
     /// Index of the current (hardest unlocked) zone.
     current: usize,
-    /// Outcomes of the last `window` episodes in the current zone.
+    /// Outcomes of the last `window` episodes since the last switch (in every open zone).
     recent: VecDeque<bool>,
     episodes: u64,
     /// Every switch so far.
     pub history: Vec<Advance>,
     /// When false, every zone is open from the start (the "no curriculum" ablation).
     pub enabled: bool,
+    /// Whether passed zones stay open.
+    keep_passed: bool,
 }
 
 impl ZoneCurriculum {
@@ -54,12 +57,18 @@ impl ZoneCurriculum {
             episodes: 0,
             history: Vec::new(),
             enabled,
+            keep_passed: spec.keep_passed,
         }
     }
 
-    /// The zones episodes may start in now: the current zone when enabled, else all of them.
+    /// The zones episodes may start in now: every zone up to the current one (only the current
+    /// one with `keep_passed: false`) when enabled, else all of them.
     pub fn open_zones(&self) -> &[String] {
-        if self.enabled { &self.zones[self.current..=self.current] } else { &self.zones }
+        match (self.enabled, self.keep_passed) {
+            (false, _) => &self.zones,
+            (true, true) => &self.zones[..=self.current],
+            (true, false) => &self.zones[self.current..=self.current],
+        }
     }
 
     /// The current zone's name.
@@ -138,7 +147,12 @@ mod tests {
     use super::*;
 
     fn spec() -> Curriculum {
-        Curriculum { zones: vec!["front".into(), "sides".into(), "behind".into()], advance_at: 0.8, window: 10 }
+        Curriculum {
+            zones: vec!["front".into(), "sides".into(), "behind".into()],
+            advance_at: 0.8,
+            window: 10,
+            keep_passed: true,
+        }
     }
 
     #[test]
@@ -166,7 +180,13 @@ mod tests {
         assert_eq!((a.from.as_str(), a.to.as_str()), ("front", "sides"));
         assert!((a.success_rate - 0.8).abs() < 1e-12, "switches at exactly the threshold, not later");
         assert_eq!(c.current(), "sides");
+        assert_eq!(c.open_zones(), ["front", "sides"], "the passed zone stays open");
         assert_eq!(c.success_rate(), None, "a new zone starts a new window");
+        let mut only = ZoneCurriculum::new(&Curriculum { keep_passed: false, ..spec() }, true);
+        for _ in 0..10 {
+            only.record(true);
+        }
+        assert_eq!(only.open_zones(), ["sides"], "keep_passed: false opens the current zone only");
     }
 
     #[test]

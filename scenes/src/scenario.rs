@@ -455,6 +455,11 @@ pub struct Curriculum {
     /// Number of recent episodes the success rate is measured over.
     #[serde(default = "Curriculum::default_window")]
     pub window: usize,
+    /// Keep the zones already passed open after advancing (episodes then start uniformly in
+    /// any unlocked zone, so skills for the easy zones are not forgotten); `false`: only the
+    /// current zone.
+    #[serde(default = "Curriculum::default_keep_passed")]
+    pub keep_passed: bool,
 }
 
 impl Curriculum {
@@ -463,6 +468,9 @@ impl Curriculum {
     }
     fn default_window() -> usize {
         200
+    }
+    fn default_keep_passed() -> bool {
+        true
     }
 }
 
