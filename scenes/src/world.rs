@@ -819,6 +819,13 @@ impl World {
         self.penetration(body, |other| Some(other) == key)
     }
 
+    /// The deepest interpenetration (m, 0 when none) between the character and the floor: how
+    /// far a pose placed by hand (a reference frame whose feet dip below the floor) sinks in.
+    pub fn penetration_with_floor(&self) -> f64 {
+        let floor = self.shared.floor_geom;
+        self.penetration(None, |other| other == floor)
+    }
+
     fn penetration(&self, body: Option<usize>, wanted: impl Fn(usize) -> bool) -> f64 {
         let shared = &*self.shared;
         let mut deepest = 0.0f64;
