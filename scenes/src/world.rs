@@ -221,8 +221,9 @@ impl World {
             .zip(&shared.props)
             .map(|(p, idx)| {
                 let at = p.pose();
+                let (x, y) = at.nominal_xy();
                 PropPlacement {
-                    pos: [at.x.nominal(), at.y.nominal(), 0.0],
+                    pos: [x, y, 0.0],
                     yaw: at.yaw_deg.nominal().to_radians(),
                     top: idx.built_height,
                     scale: 1.0,
@@ -316,7 +317,7 @@ impl World {
         rescale: &mut Vec<(usize, f64, f64)>,
     ) -> PropPlacement {
         let at = prop.pose();
-        let (mut x, mut y) = (at.x.sample(rng), at.y.sample(rng));
+        let (mut x, mut y) = at.sample_xy(rng);
         let z = at.z.sample(rng);
         let yaw = at.yaw_deg.sample(rng).to_radians();
         let floor = match base {
