@@ -225,7 +225,9 @@ impl WarehouseJudge {
 }
 
 /// How far the hands squeeze into the box when it is put into them (m).
-const SQUEEZE_M: f64 = 0.01;
+const SQUEEZE_M: f64 = 0.015;
+/// How far the hands' gap may be from the wanted one (m).
+const GAP_TOLERANCE_M: f64 = 0.01;
 
 /// Stands the character at `(x, y)` facing `yaw` (radians) with its arms forward and free prop
 /// `b` (a box) held between its hands, both touching it, everything at rest: the start of a
@@ -271,7 +273,7 @@ pub fn place_holding(world: &mut World, b: usize, x: f64, y: f64, yaw: f64) -> R
     let mut best: Option<(f64, Vec<f64>)> = None;
     for lift in [-60f64, -75.0, -45.0] {
         for twist in [90f64, -90.0] {
-            for elbow in (0..=60).map(|k| f64::from(k) * 2.0) {
+            for elbow in (0..=120).map(f64::from) {
                 for (k, a) in arm.iter().enumerate() {
                     let mirror = if k == 0 { 1.0 } else { -1.0 };
                     let clamp = |j: usize, v: f64| v.clamp(idx.joints[j].range[0], idx.joints[j].range[1]);
@@ -295,7 +297,7 @@ pub fn place_holding(world: &mut World, b: usize, x: f64, y: f64, yaw: f64) -> R
             }
         }
     }
-    let Some((err, pose)) = best.filter(|(e, _)| *e < 0.008) else {
+    let Some((err, pose)) = best.filter(|(e, _)| *e < GAP_TOLERANCE_M) else {
         return Err(MetaError::Invalid(format!(
             "place_holding: no arm pose puts the hands {width:.2} m apart around the box"
         )));
