@@ -230,17 +230,18 @@ const SQUEEZE_M: f64 = 0.015;
 const GAP_TOLERANCE_M: f64 = 0.01;
 
 /// Stands the character at `(x, y)` facing `yaw` (radians) with its arms forward and free prop
-/// `b` (a box) held between its hands, both touching it, everything at rest: the start of a
-/// CARRY or PUTDOWN phase. The arm pose is searched over the shoulder twist and the elbow so
+/// `b` (a box or a ball) held between its hands, both touching it, everything at rest: the start
+/// of a CARRY or PUTDOWN phase, a caught ball. The arm pose is searched over the shoulder twist and the elbow so
 /// that the hands are as far apart as the box is wide; bodies without `*shoulder_y`,
 /// `*shoulder_z` and `*elbow` joints on both sides, or a box no pose fits, are an error.
 pub fn place_holding(world: &mut World, b: usize, x: f64, y: f64, yaw: f64) -> Result<()> {
     let model = std::sync::Arc::clone(world.model());
-    let Some(Prop::Box(spec)) = model.scenario.scenario.props.get(b) else {
-        return Err(MetaError::Invalid(format!("place_holding: prop {b} is not a box")));
+    let scale = world.placements().get(b).map_or(1.0, |p| p.scale);
+    let (depth, width) = match model.scenario.scenario.props.get(b) {
+        Some(Prop::Box(spec)) => (spec.size.0 * scale, spec.size.1 * scale),
+        Some(Prop::Ball(ball)) => (2.0 * ball.radius * scale, 2.0 * ball.radius * scale),
+        _ => return Err(MetaError::Invalid(format!("place_holding: prop {b} is not a box or a ball"))),
     };
-    let scale = world.placements()[b].scale;
-    let (depth, width) = (spec.size.0 * scale, spec.size.1 * scale);
     let idx = &model.index;
     let joint = |name: &str| {
         idx.joints.iter().position(|j| j.name == name).ok_or_else(|| {
@@ -299,7 +300,7 @@ pub fn place_holding(world: &mut World, b: usize, x: f64, y: f64, yaw: f64) -> R
     }
     let Some((err, pose)) = best.filter(|(e, _)| *e < GAP_TOLERANCE_M) else {
         return Err(MetaError::Invalid(format!(
-            "place_holding: no arm pose puts the hands {width:.2} m apart around the box"
+            "place_holding: no arm pose puts the hands {width:.2} m apart around prop {b}"
         )));
     };
     tracing::trace!(err, "holding pose");
@@ -310,7 +311,7 @@ pub fn place_holding(world: &mut World, b: usize, x: f64, y: f64, yaw: f64) -> R
     world.set_free_prop(b, centre, yaw_quat(box_yaw.to_degrees()), [0.0; 3], [0.0; 3])?;
     let hands = world.contacts().hands_on_prop(b);
     if hands != [true, true] {
-        return Err(MetaError::Invalid(format!("place_holding: the box ended up touching hands {hands:?}")));
+        return Err(MetaError::Invalid(format!("place_holding: prop {b} ended up touching hands {hands:?}")));
     }
     Ok(())
 }

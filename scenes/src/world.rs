@@ -373,6 +373,18 @@ impl World {
                 model.geom_aabb_mut()[g] = base.geom_aabb()[g].map(|v| v * scale);
             }
         }
+        // Recompute the constants MuJoCo derives from masses and inertias at compile time
+        // (subtree masses, the mass matrix at qpos0, ...), as the compiler would have.
+        // SAFETY: `model` is a valid, exclusively owned mjModel; the scratch mjData is made for
+        // it, used only by mj_setConst and freed right after.
+        unsafe {
+            let m = model.ffi_mut() as *mut mujoco_rs::mujoco_c::mjModel;
+            let d = mujoco_rs::mujoco_c::mj_makeData(m);
+            if !d.is_null() {
+                mujoco_rs::mujoco_c::mj_setConst(m, d);
+                mujoco_rs::mujoco_c::mj_deleteData(d);
+            }
+        }
         self.data.swap_model(Arc::new(model));
         self.owns_model = true;
     }

@@ -118,3 +118,33 @@ fn malformed_task_sections_are_located_and_explained() {
     let text = r#"Scenario(name: "t", props: [Pedestal(name: "a", at: (radius: (3.5, 2.5)))])"#;
     assert!(parse(text).unwrap_err().to_string().contains("low end above its high end"));
 }
+
+#[test]
+fn a_ball_of_any_drawn_mass_falls_at_standard_gravity() {
+    // Masses drawn per episode (2–4 kg around a nominal 3 kg) change the ball's inertia, not
+    // how fast it falls; before MuJoCo's derived constants were recomputed it fell at g·m/3.
+    let model = Arc::new(WorldModel::build(ScenarioFile::load(shipped("toss.ron")).unwrap()).unwrap());
+    let ball = model.prop_id("ball").unwrap();
+    let mut world = model.new_world();
+    let mut rng = StdRng::seed_from_u64(12);
+    let mut masses = Vec::new();
+    for _ in 0..5 {
+        world.reset_in_zone("middle", &mut rng).unwrap();
+        masses.push(world.placements()[ball].mass);
+        world.set_free_prop(ball, [3.0, 2.0, 3.0], [1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 2.0], [0.0, 0.0, 3.0]).unwrap();
+        let hold: Vec<f64> = {
+            let mut a = vec![0.0; model.index.dof()];
+            world.joint_angles(&mut a);
+            a
+        };
+        let ticks = 18;
+        for _ in 0..ticks {
+            world.step(&hold).unwrap();
+        }
+        let t = ticks as f64 * model.control_dt();
+        let z = world.body_position(model.props[ball].body)[2];
+        let expected = 3.0 + 2.0 * t - 0.5 * 9.81 * t * t;
+        assert!((z - expected).abs() < 0.005, "mass {}: z {z} vs {expected}", masses.last().unwrap());
+    }
+    assert!(masses.iter().any(|&m| (m - 3.0).abs() > 0.3), "masses away from the nominal were drawn: {masses:?}");
+}
