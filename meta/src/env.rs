@@ -22,6 +22,7 @@ use rand::Rng;
 use repertoire_humanoid::ActionMap;
 use repertoire_learn::acting::ActingPolicy;
 use repertoire_learn::env::{Env, EnvRng, MAX_TERMS, StepOutcome};
+use repertoire_scenes::math::wrap_angle;
 use repertoire_scenes::{
     Annotation, Feature, ObservationLayout, RecordOptions, Recorder, Recording, World, WorldModel,
 };
@@ -367,7 +368,11 @@ impl Env for MetaEnv {
             zones[rng.random_range(0..zones.len())].clone()
         };
         self.start = self.world.reset_in_zone(&zone, rng).expect("zones come from the scenario");
-        if let Some((x, y, yaw)) = self.over.start {
+        if let Some((lx, ly, turn)) = self.over.start {
+            let f = self.world.placements()[self.setup.task.frame_prop()];
+            let (s, c) = f.yaw.sin_cos();
+            let (x, y) = (f.pos[0] + c * lx - s * ly, f.pos[1] + s * lx + c * ly);
+            let yaw = wrap_angle((f.pos[1] - y).atan2(f.pos[0] - x) + turn);
             self.world.place_standing(x, y, yaw);
             self.start = (x, y, yaw);
         }

@@ -7,6 +7,7 @@ pub mod eval;
 pub mod graph;
 pub mod judge;
 pub mod task;
+pub mod task_eval;
 pub mod toss;
 pub mod train;
 pub mod warehouse;

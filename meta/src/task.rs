@@ -45,7 +45,9 @@ pub enum TaskSpec {
 /// What an episode is made to start with instead of drawing it (evaluation grids).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct EpisodeOverride {
-    /// Start here `(x, y, yaw)` instead of in a spawn zone.
+    /// Start at `(x, y)` in the frame of the task's [`TaskSpec::frame_prop`] (x: its front, y:
+    /// its left) facing the prop turned by the third value (radians, counter-clockwise), instead
+    /// of in a spawn zone.
     pub start: Option<(f64, f64, f64)>,
     /// The warehouse phase to start in.
     pub phase: Option<WarehousePhase>,

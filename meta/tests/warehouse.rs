@@ -224,11 +224,13 @@ fn the_meta_environment_observes_the_phase_and_rewards_a_completed_goto() {
     assert!((1.9..4.1).contains(&d), "focal pedestal {d} m away in the pelvis frame");
     // Started next to the box's pedestal: the first tick completes GOTO, reward 1, LIFT next.
     let home = w.pedestals[w.home];
+    env.set_override(EpisodeOverride { start: Some((-0.4, 0.0, 0.3)), ..Default::default() });
     env.reset(&mut EnvRng::seed_from_u64(5), &mut obs);
-    let at = env.world().placements()[home].pos;
-    env.set_override(EpisodeOverride { start: Some((at[0] - 0.4, at[1], 0.0)), ..Default::default() });
-    env.reset(&mut EnvRng::seed_from_u64(5), &mut obs);
-    assert_eq!(env.world().placements()[home].pos, at, "the same seed draws the same pedestals");
+    let at = env.world().placements()[home];
+    let (x, y, yaw) = env.start;
+    assert!(((x - at.pos[0]).hypot(y - at.pos[1]) - 0.4).abs() < 1e-9, "0.4 m from the pedestal's centre");
+    let facing = (at.pos[1] - y).atan2(at.pos[0] - x);
+    assert!((repertoire_scenes::math::wrap_angle(yaw - facing) - 0.3).abs() < 1e-9, "turned 0.3 rad from facing it");
     let out = env.step(&[0.0, 0.0, 0.0], &mut obs);
     assert_eq!(out.reward, 1.0, "GOTO completed");
     assert_eq!(&obs[n..n + 4], [0.0, 1.0, 0.0, 0.0], "phase one-hot: LIFT");
