@@ -271,31 +271,53 @@ pub fn place_holding(world: &mut World, b: usize, x: f64, y: f64, yaw: f64) -> R
     let mut pose: Vec<f64> = idx.joints.iter().map(|j| standing[j.qpos]).collect();
     let want = width - 2.0 * SQUEEZE_M;
     let (s, c) = yaw.sin_cos();
+    // The hands' gap error of one arm pose (None when the hands are not level and in front).
+    let mut try_pose = |world: &mut World, lift: f64, twist: f64, elbow: f64| -> Result<Option<(f64, Vec<f64>)>> {
+        for (k, a) in arm.iter().enumerate() {
+            let mirror = if k == 0 { 1.0 } else { -1.0 };
+            let clamp = |j: usize, v: f64| v.clamp(idx.joints[j].range[0], idx.joints[j].range[1]);
+            pose[a[0]] = clamp(a[0], lift.to_radians());
+            pose[a[1]] = clamp(a[1], (mirror * twist).to_radians());
+            pose[a[2]] = clamp(a[2], elbow.to_radians());
+        }
+        world.set_pose(root, quat, &pose)?;
+        let (l, r) = (world.body_position(idx.hands[0]), world.body_position(idx.hands[1]));
+        let gap = (l[0] - r[0]).hypot(l[1] - r[1]) - radii[0] - radii[1];
+        // Both hands in front of the chest by more than half the box's depth, at one height.
+        let forward = |p: [f64; 3]| c * (p[0] - x) + s * (p[1] - y);
+        let ahead = forward(l).min(forward(r)) > 0.5 * depth + 0.12;
+        let level = (l[2] - r[2]).abs() < 0.02;
+        Ok((ahead && level).then(|| ((gap - want).abs(), pose.clone())))
+    };
     let mut best: Option<(f64, Vec<f64>)> = None;
+    let keep = |best: &mut Option<(f64, Vec<f64>)>, found: Option<(f64, Vec<f64>)>| {
+        if let Some((err, p)) = found
+            && best.as_ref().is_none_or(|(e, _)| err < *e)
+        {
+            *best = Some((err, p));
+        }
+    };
     for lift in [-60f64, -75.0, -45.0] {
         for twist in [90f64, -90.0] {
-            for elbow in (0..=120).map(f64::from) {
-                for (k, a) in arm.iter().enumerate() {
-                    let mirror = if k == 0 { 1.0 } else { -1.0 };
-                    let clamp = |j: usize, v: f64| v.clamp(idx.joints[j].range[0], idx.joints[j].range[1]);
-                    pose[a[0]] = clamp(a[0], lift.to_radians());
-                    pose[a[1]] = clamp(a[1], (mirror * twist).to_radians());
-                    pose[a[2]] = clamp(a[2], elbow.to_radians());
-                }
-                world.set_pose(root, quat, &pose)?;
-                let (l, r) = (world.body_position(idx.hands[0]), world.body_position(idx.hands[1]));
-                let gap = (l[0] - r[0]).hypot(l[1] - r[1]) - radii[0] - radii[1];
-                // Both hands in front of the chest by more than half the box's depth.
-                let forward = |p: [f64; 3]| c * (p[0] - x) + s * (p[1] - y);
-                let ahead = forward(l).min(forward(r)) > 0.5 * depth + 0.12;
-                let level = (l[2] - r[2]).abs() < 0.02;
-                if ahead && level {
-                    let err = (gap - want).abs();
-                    if best.as_ref().is_none_or(|(e, _)| err < *e) {
-                        best = Some((err, pose.clone()));
+            // Coarse elbow steps of 4°, then 1° around the best of them.
+            let mut coarse: Option<(f64, f64)> = None;
+            for elbow in (0..=30).map(|k| f64::from(k) * 4.0) {
+                if let Some((err, p)) = try_pose(world, lift, twist, elbow)? {
+                    if coarse.is_none_or(|(e, _)| err < e) {
+                        coarse = Some((err, elbow));
                     }
+                    keep(&mut best, Some((err, p)));
                 }
             }
+            if let Some((_, centre)) = coarse {
+                for elbow in (-3..=3).map(|k| centre + f64::from(k)).filter(|e| (0.0..=120.0).contains(e)) {
+                    let found = try_pose(world, lift, twist, elbow)?;
+                    keep(&mut best, found);
+                }
+            }
+        }
+        if best.as_ref().is_some_and(|(e, _)| *e < 0.25 * GAP_TOLERANCE_M) {
+            break; // a close fit at this shoulder angle; the others are fallbacks
         }
     }
     let Some((err, pose)) = best.filter(|(e, _)| *e < GAP_TOLERANCE_M) else {
