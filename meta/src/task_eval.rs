@@ -149,6 +149,9 @@ pub struct PickupMap {
     /// `successes[i][j]`: pick-ups at `ys[i]`, `xs[j]` out of `grid.trials`; `None` for cells
     /// on the pedestal itself (closer than [`PEDESTAL_CLEARANCE_M`] to its centre), not run.
     pub successes: Vec<Vec<Option<usize>>>,
+    /// `reached[i][j]`: episodes from that cell that completed GOTO (came within reach of the
+    /// pedestal), the first half of a pick-up.
+    pub reached: Vec<Vec<Option<usize>>>,
 }
 
 /// The warehouse evaluation.
@@ -218,7 +221,7 @@ pub fn evaluate_warehouse(
             .flat_map(|i| (0..g.n).flat_map(move |j| (0..g.trials).map(move |k| (i, j, k))))
             .filter(|&(i, j, _)| open(i, j))
             .collect();
-        let outcomes: Vec<(usize, usize, bool)> = cells
+        let outcomes: Vec<(usize, usize, u32)> = cells
             .into_par_iter()
             .map(|(i, j, k)| {
                 let stream = 1_000_000 + ((i * g.n + j) * g.trials + k) as u64;
@@ -235,17 +238,21 @@ pub fn evaluate_warehouse(
                 };
                 let e = run_episode(setup, controller, over, seed, stream);
                 let TaskState::Warehouse(judge) = &e.task else { unreachable!("a warehouse setup") };
-                (i, j, judge.completed >= 2)
+                (i, j, judge.completed)
             })
             .collect();
         let mut successes: Vec<Vec<Option<usize>>> =
             (0..g.n).map(|i| (0..g.n).map(|j| open(i, j).then_some(0)).collect()).collect();
-        for (i, j, ok) in outcomes {
+        let mut reached = successes.clone();
+        for (i, j, phases) in outcomes {
             if let Some(k) = successes[i][j].as_mut() {
-                *k += usize::from(ok);
+                *k += usize::from(phases >= 2);
+            }
+            if let Some(k) = reached[i][j].as_mut() {
+                *k += usize::from(phases >= 1);
             }
         }
-        PickupMap { grid: g, xs, ys, successes }
+        PickupMap { grid: g, xs, ys, successes, reached }
     });
     Ok(WarehouseReport { rows, trials, pickup })
 }
@@ -269,30 +276,38 @@ impl WarehouseReport {
             );
         }
         if let Some(p) = &self.pickup {
-            let total: usize = p.successes.iter().flatten().flatten().sum();
-            let n = p.successes.iter().flatten().flatten().count() * p.grid.trials;
-            let _ = writeln!(
-                s,
-                "\npick-up success (GOTO + LIFT from a GOTO start) by start position in the pedestal's frame: \
-                 {total}/{n} ({:.1}%); rows: y (its left, m), columns: x (its front, m)\n",
-                100.0 * total as f64 / n.max(1) as f64
-            );
-            let _ =
-                writeln!(s, "| y \\ x | {} |", p.xs.iter().map(|x| format!("{x:.2}")).collect::<Vec<_>>().join(" | "));
-            let _ = writeln!(s, "|---|{}", "---:|".repeat(p.xs.len()));
-            for (i, y) in p.ys.iter().enumerate().rev() {
-                let cells: Vec<String> = p.successes[i]
-                    .iter()
-                    .map(|k| k.map_or_else(|| "pedestal".to_string(), |k| format!("{k}/{}", p.grid.trials)))
-                    .collect();
-                let _ = writeln!(s, "| {y:.2} | {} |", cells.join(" | "));
+            for (what, counts) in [
+                ("pick-up success (GOTO + LIFT from a GOTO start)", &p.successes),
+                ("GOTO reached (within reach of the pedestal)", &p.reached),
+            ] {
+                let total: usize = counts.iter().flatten().flatten().sum();
+                let n = counts.iter().flatten().flatten().count() * p.grid.trials;
+                let _ = writeln!(
+                    s,
+                    "\n{what} by start position in the pedestal's frame: {total}/{n} ({:.1}%); rows: y (its \
+                     left, m), columns: x (its front, m)\n",
+                    100.0 * total as f64 / n.max(1) as f64
+                );
+                let _ = writeln!(
+                    s,
+                    "| y \\ x | {} |",
+                    p.xs.iter().map(|x| format!("{x:.2}")).collect::<Vec<_>>().join(" | ")
+                );
+                let _ = writeln!(s, "|---|{}", "---:|".repeat(p.xs.len()));
+                for (i, y) in p.ys.iter().enumerate().rev() {
+                    let cells: Vec<String> = counts[i]
+                        .iter()
+                        .map(|k| k.map_or_else(|| "pedestal".to_string(), |k| format!("{k}/{}", p.grid.trials)))
+                        .collect();
+                    let _ = writeln!(s, "| {y:.2} | {} |", cells.join(" | "));
+                }
             }
         }
         s
     }
 
     /// Writes `report.md`, `trials.csv`, `report.json` and, with a pick-up map,
-    /// `pickup.png`/`.svg` into `dir`.
+    /// `pickup.png`/`.svg` and `goto.png`/`.svg` into `dir`.
     pub fn write(&self, dir: &Path) -> Result<()> {
         let mut csv = String::from("index,start_phase,phases,fell,dropped,seconds,return\n");
         for t in &self.trials {
@@ -305,28 +320,32 @@ impl WarehouseReport {
         let json = serde_json::to_string_pretty(self).expect("a report is plain data");
         write_files(dir, &[("report.md", self.markdown()), ("trials.csv", csv), ("report.json", json)])?;
         if let Some(p) = &self.pickup {
-            let cells: Vec<Vec<(Option<f64>, usize)>> = p
-                .successes
-                .iter()
-                .map(|row| {
-                    row.iter()
-                        .map(|k| match k {
-                            Some(k) => (Some(*k as f64 / p.grid.trials.max(1) as f64), p.grid.trials),
-                            None => (None, 0),
-                        })
-                        .collect()
-                })
-                .collect();
-            grid_map(
-                &dir.join("pickup"),
-                "pick-up success by start position (pedestal at the origin, facing +x)",
-                "x: in front of the pedestal (m)",
-                "y: to its left (m)",
-                &p.xs,
-                &p.ys,
-                &cells,
-            )
-            .map_err(|e| MetaError::Invalid(e.to_string()))?;
+            for (stem, title, counts) in [
+                ("pickup", "pick-up success by start position (pedestal at the origin, facing +x)", &p.successes),
+                ("goto", "GOTO reached by start position (pedestal at the origin, facing +x)", &p.reached),
+            ] {
+                let cells: Vec<Vec<(Option<f64>, usize)>> = counts
+                    .iter()
+                    .map(|row| {
+                        row.iter()
+                            .map(|k| match k {
+                                Some(k) => (Some(*k as f64 / p.grid.trials.max(1) as f64), p.grid.trials),
+                                None => (None, 0),
+                            })
+                            .collect()
+                    })
+                    .collect();
+                grid_map(
+                    &dir.join(stem),
+                    title,
+                    "x: in front of the pedestal (m)",
+                    "y: to its left (m)",
+                    &p.xs,
+                    &p.ys,
+                    &cells,
+                )
+                .map_err(|e| MetaError::Invalid(e.to_string()))?;
+            }
         }
         Ok(())
     }

@@ -74,10 +74,17 @@ fn the_warehouse_evaluation_counts_phases_and_maps_pick_ups() {
     assert_eq!(p.xs, [-1.0, 0.0, 1.0]);
     assert_eq!(p.successes[1][1], None, "the centre cell is the pedestal");
     assert_eq!(p.successes.iter().flatten().flatten().count(), 8);
+    for (row, reached) in p.successes.iter().zip(&p.reached) {
+        for (k, r) in row.iter().zip(reached) {
+            assert_eq!(k.is_some(), r.is_some());
+            assert!(k.unwrap_or(0) <= r.unwrap_or(0), "a pick-up passes through GOTO");
+        }
+    }
     a.write(&dir.join("report")).unwrap();
     let md = std::fs::read_to_string(dir.join("report/report.md")).unwrap();
     assert!(md.contains("| all | 8 |") && md.contains("pedestal") && md.contains("/1"), "{md}");
     assert!(dir.join("report/pickup.png").exists() && dir.join("report/trials.csv").exists());
+    assert!(dir.join("report/goto.svg").exists() && md.contains("GOTO reached"));
 }
 
 #[test]
