@@ -196,7 +196,10 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
                     let report = evaluate_warehouse(&setup, &head, trials.unwrap_or(200), map, seed)?;
                     print!("{}", report.markdown());
                     report.write(&out)?;
-                    println!("\nreport.md, trials.csv, report.json, pickup.png and goto.png written to {}", out.display());
+                    println!(
+                        "\nreport.md, trials.csv, report.json, pickup.png and goto.png written to {}",
+                        out.display()
+                    );
                     return Ok(());
                 }
                 TaskSpec::Toss(_) => {

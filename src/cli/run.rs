@@ -48,7 +48,14 @@ pub fn run(args: RunArgs) -> Result<()> {
         None => default_meta(args.file.as_ref())?,
     };
     if meta.join("meta.ron").exists() {
-        let setup = super::meta::setup(args.file.as_ref(), &args.library, &[], &[])?;
+        // The skills the controller was trained over (a warehouse controller may have been
+        // trained on walk and the turns only); its manifest is checked in full by `load`.
+        let skills: Vec<String> = std::fs::read_to_string(meta.join("meta.ron"))
+            .ok()
+            .and_then(|text| ron::from_str::<repertoire_meta::train::MetaManifest>(&text).ok())
+            .map(|m| m.skills)
+            .unwrap_or_default();
+        let setup = super::meta::setup(args.file.as_ref(), &args.library, &[], &skills)?;
         let (manifest, head) = repertoire_meta::train::load(&meta, &setup)?;
         if !matches!(setup.task, TaskSpec::Sit { .. }) {
             return run_task(&setup, &head, &meta, manifest.iterations, &args);
