@@ -37,3 +37,61 @@ fn meta_commands_name_the_missing_warehouse_and_toss_skills() {
         }
     }
 }
+
+#[test]
+fn report_gathers_warehouse_and_toss_evaluations() {
+    use repertoire_meta::task_eval::{PhaseRow, PickupMap, StartGrid, TossReport, TossTrial, WarehouseReport};
+    let dir = temp_dir("task-reports");
+    let row = |p: &str| PhaseRow {
+        start_phase: p.into(),
+        episodes: 2,
+        phases_mean: 0.5,
+        phases_sd: 0.7,
+        fall_rate: 0.5,
+        drop_rate: 0.0,
+    };
+    let warehouse = WarehouseReport {
+        rows: vec![row("GOTO"), row("all")],
+        trials: Vec::new(),
+        pickup: Some(PickupMap {
+            grid: StartGrid { n: 2, half_m: 1.0, trials: 2 },
+            xs: vec![-0.5, 0.5],
+            ys: vec![-0.5, 0.5],
+            successes: vec![vec![Some(0), Some(1)], vec![None, Some(2)]],
+            reached: vec![vec![Some(1), Some(2)], vec![None, Some(2)]],
+        }),
+    };
+    warehouse.write(&dir.join("warehouse")).unwrap();
+    let throw = |v_x: f64, caught: bool| TossTrial {
+        index: 0,
+        v_x,
+        lateral: 0.0,
+        caught,
+        delivered: false,
+        dropped: !caught,
+        fell: false,
+        episode_return: 0.0,
+    };
+    let toss = TossReport {
+        v_x: vec![2.0, 4.0],
+        lateral: vec![0.0],
+        trials: 1,
+        throws: vec![throw(2.0, true), throw(4.0, false)],
+    };
+    toss.write(&dir.join("toss")).unwrap();
+    let w = dir.join("warehouse");
+    ok(&repertoire(&["report", w.to_str().unwrap()]));
+    let page = std::fs::read_to_string(w.join("report/index.md")).unwrap();
+    assert!(
+        page.contains("Warehouse evaluation") && page.contains("(pickup.png)") && page.contains("(goto.png)"),
+        "{page}"
+    );
+    assert!(page.contains("| GOTO | 2 | 0.50 ± 0.70 |"), "{page}");
+    let t = dir.join("toss");
+    ok(&repertoire(&["report", t.to_str().unwrap()]));
+    let page = std::fs::read_to_string(t.join("report/index.md")).unwrap();
+    assert!(
+        page.contains("Toss evaluation") && page.contains("(strike_zone.png)") && page.contains("| 2 | 50.0% |"),
+        "{page}"
+    );
+}

@@ -319,6 +319,13 @@ impl WarehouseReport {
         }
         let json = serde_json::to_string_pretty(self).expect("a report is plain data");
         write_files(dir, &[("report.md", self.markdown()), ("trials.csv", csv), ("report.json", json)])?;
+        self.plot(dir).map(|_| ())
+    }
+
+    /// Draws the pick-up and GOTO maps (`pickup`, `goto` as PNG + SVG) into `dir`; returns the
+    /// stems drawn (none without a pick-up map).
+    pub fn plot(&self, dir: &Path) -> Result<Vec<std::path::PathBuf>> {
+        let mut stems = Vec::new();
         if let Some(p) = &self.pickup {
             for (stem, title, counts) in [
                 ("pickup", "pick-up success by start position (pedestal at the origin, facing +x)", &p.successes),
@@ -345,9 +352,10 @@ impl WarehouseReport {
                     &cells,
                 )
                 .map_err(|e| MetaError::Invalid(e.to_string()))?;
+                stems.push(dir.join(stem));
             }
         }
-        Ok(())
+        Ok(stems)
     }
 }
 
@@ -495,6 +503,12 @@ impl TossReport {
         }
         let json = serde_json::to_string_pretty(self).expect("a report is plain data");
         write_files(dir, &[("report.md", self.markdown()), ("throws.csv", csv), ("report.json", json)])?;
+        self.plot(dir).map(|_| ())
+    }
+
+    /// Draws the strike zone's catch rates (`strike_zone` as PNG + SVG) into `dir`; returns the
+    /// stem drawn.
+    pub fn plot(&self, dir: &Path) -> Result<std::path::PathBuf> {
         let cells: Vec<Vec<(Option<f64>, usize)>> = (0..self.lateral.len())
             .map(|b| {
                 (0..self.v_x.len())
@@ -515,6 +529,6 @@ impl TossReport {
             &cells,
         )
         .map_err(|e| MetaError::Invalid(e.to_string()))?;
-        Ok(())
+        Ok(dir.join("strike_zone"))
     }
 }
