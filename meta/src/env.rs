@@ -88,6 +88,12 @@ impl MetaSetup {
     pub fn new(model: Arc<WorldModel>, library: &Path, graph: SkillGraph) -> Result<Self> {
         let sc = model.scenario.scenario.clone();
         let task = TaskSpec::of(&model)?;
+        if sc.spawn.is_empty() {
+            return Err(MetaError::Invalid(format!(
+                "{}: the meta-controller needs at least one spawn zone (`spawn: [Zone(...)]`)",
+                model.scenario.path.display()
+            )));
+        }
         let time_limit_s = sc.task.time_limit_s();
         let missing: Vec<&str> = graph
             .names()

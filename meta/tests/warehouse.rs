@@ -295,3 +295,16 @@ fn a_library_without_the_warehouse_skills_is_refused_naming_them() {
     assert!(err.contains("(it has: walk)") && err.contains("--skills"), "{err}");
     let _ = std::fs::remove_dir_all(&lib);
 }
+
+#[test]
+fn a_warehouse_without_spawn_zones_is_refused() {
+    let text = std::fs::read_to_string(root().join("scenes/warehouse.ron")).unwrap();
+    let start = text.find("    spawn: [").unwrap();
+    let end = start + text[start..].find("    ],\n").unwrap() + "    ],\n".len();
+    let text = format!("{}{}", &text[..start], &text[end..]);
+    let file = ScenarioFile::parse(&root().join("scenes/no-spawn.ron"), text).unwrap();
+    let model = Arc::new(WorldModel::build(file).unwrap());
+    let graph = SkillGraph::of(&model.scenario.scenario).restricted(&["walk".to_string()]).unwrap();
+    let err = MetaSetup::new(model, &root().join("skills/library"), graph).err().expect("no zone").to_string();
+    assert!(err.contains("no-spawn.ron") && err.contains("spawn zone"), "{err}");
+}
