@@ -1,11 +1,14 @@
-//! [`MetaEnv`]: the sitting task at the meta rate. Each decision picks a skill (masked by the
+//! [`MetaEnv`]: a scenario's task at the meta rate. Each decision picks a skill (masked by the
 //! skill graph) and a continuous 2-D target; the chosen skill's frozen policy then drives the
-//! character for `control_hz / meta_hz` control ticks. Reward: 1 while the pelvis touches the
-//! seat, else `0.5·(−V_sit)` with `V_sit` the rate of change of the pelvis-to-seat distance.
-//! The episode ends on success (3 s of unbroken seat contact), a fall, or the time limit.
+//! character for `control_hz / meta_hz` control ticks. The task ([`crate::task`]) decides the
+//! reward, success and failure: sitting rewards 1 while the pelvis touches the seat, else
+//! `0.5·(−V_sit)`, and ends on success (3 s of unbroken seat contact); the warehouse rewards 1
+//! per completed phase; the toss rewards the ball's time in the bucket. Every episode ends on a
+//! fall, a task failure or the time limit.
 //!
 //! Episodes start mid-motion in the first start skill's successful end states (e.g. walking),
-//! at the spawn point and heading the zone draws; without such a pool, standing still.
+//! at the spawn point and heading the zone draws; without such a pool, standing still. A task
+//! may place the character itself (a warehouse episode starting in LIFT, CARRY or PUTDOWN).
 //!
 //! A skill whose clip does not loop (a turn cycle, the sit-down) is never run past its clip's
 //! end, where its policy was never trained: the decision ends early there, and choosing the
@@ -19,7 +22,7 @@ use rand::Rng;
 use repertoire_humanoid::ActionMap;
 use repertoire_learn::acting::ActingPolicy;
 use repertoire_learn::env::{Env, EnvRng, MAX_TERMS, StepOutcome};
-use repertoire_scenes::scenario::Task as ScenarioTask;
+use repertoire_scenes::math::wrap_angle;
 use repertoire_scenes::{
     Annotation, Feature, ObservationLayout, RecordOptions, Recorder, Recording, World, WorldModel,
 };
@@ -30,10 +33,11 @@ use repertoire_skill::spec::Goal;
 
 use crate::error::{MetaError, Result};
 use crate::graph::SkillGraph;
-use crate::judge::SitJudge;
+use crate::task::{EpisodeOverride, TaskSpec, TaskState};
 
-/// Names of the per-episode figures in [`StepOutcome::terms`] (reported on the last step).
-pub const TERM_NAMES: [&str; 5] = ["success", "min_distance", "fell", "seconds", "switches"];
+/// Names of the sitting task's per-episode figures in [`StepOutcome::terms`] (reported on the
+/// last step); other tasks name theirs in [`TaskSpec::term_names`].
+pub const TERM_NAMES: [&str; 5] = crate::task::SIT_TERMS;
 
 /// One skill as the meta-controller runs it.
 #[derive(Debug, Clone)]
@@ -60,13 +64,11 @@ pub struct MetaSetup {
     pub skills: Vec<MetaSkill>,
     /// Allowed transitions.
     pub graph: SkillGraph,
-    /// The meta observation layout (proprioception and the seat's pose), before the one-hot
-    /// current skill and its phase.
+    /// The meta observation layout (proprioception and the task's props, e.g. the seat's
+    /// pose), before the task's own values, the one-hot current skill and its phase.
     pub layout: ObservationLayout,
-    /// The seat prop.
-    pub seat: usize,
-    /// Seconds of seat contact that count as success.
-    pub hold_s: f64,
+    /// The task: its props, reward, success and failure.
+    pub task: TaskSpec,
     /// Episode limit in decisions.
     pub max_decisions: u32,
     /// Episode limit in simulated seconds.
@@ -81,17 +83,44 @@ pub struct MetaSetup {
 }
 
 impl MetaSetup {
-    /// The sitting scenario of `model` with the skills of its graph loaded from `library`.
+    /// The scenario of `model` (a Sit, Warehouse or Toss task) with the skills of its graph
+    /// loaded from `library`. Skills the library lacks are named in the error.
     pub fn new(model: Arc<WorldModel>, library: &Path, graph: SkillGraph) -> Result<Self> {
         let sc = model.scenario.scenario.clone();
-        let ScenarioTask::Sit { seat, hold_s, time_limit_s } = &sc.task else {
+        let task = TaskSpec::of(&model)?;
+        if sc.spawn.is_empty() {
             return Err(MetaError::Invalid(format!(
-                "{}: the meta-controller needs a Sit task, found {:?}",
-                model.scenario.path.display(),
-                sc.task
+                "{}: the meta-controller needs at least one spawn zone (`spawn: [Zone(...)]`)",
+                model.scenario.path.display()
             )));
-        };
-        let seat_id = model.prop_id(seat).ok_or_else(|| MetaError::Invalid(format!("no seat prop `{seat}`")))?;
+        }
+        let time_limit_s = sc.task.time_limit_s();
+        let missing: Vec<&str> = graph
+            .names()
+            .into_iter()
+            .filter(|name| !library::skill_dir(library, name).join("manifest.ron").exists())
+            .collect();
+        if !missing.is_empty() {
+            let mut have: Vec<String> = std::fs::read_dir(library)
+                .map(|dir| {
+                    dir.filter_map(|e| e.ok())
+                        .filter(|e| e.path().join("manifest.ron").exists())
+                        .map(|e| e.file_name().to_string_lossy().into_owned())
+                        .collect()
+                })
+                .unwrap_or_default();
+            have.sort();
+            return Err(MetaError::Invalid(format!(
+                "{}: the {} task needs skill{} {} that the library {} does not have (it has: {}); train \
+                 them with `repertoire skill train`, or restrict the scenario's skills with `--skills`",
+                model.scenario.path.display(),
+                task.name(),
+                if missing.len() == 1 { "" } else { "s" },
+                missing.join(", "),
+                library.display(),
+                if have.is_empty() { "none".to_string() } else { have.join(", ") }
+            )));
+        }
         let mut skills = Vec::new();
         let mut start_pool = None;
         for (k, name) in graph.names().into_iter().enumerate() {
@@ -116,20 +145,19 @@ impl MetaSetup {
             });
         }
         let mut features = Feature::proprioception();
-        features.push(Feature::PropPose(seat.clone()));
+        features.extend(task.features(&model));
         let layout = ObservationLayout::new(&model, &features)?;
         let rates = sc.rates;
         let ticks = (rates.control_hz / rates.meta_hz.max(1)).max(1) as usize;
         let zones = sc.spawn.iter().map(|z| z.name.clone()).collect();
         Ok(MetaSetup {
             max_decisions: (time_limit_s * f64::from(rates.meta_hz)).round().max(1.0) as u32,
-            time_limit_s: *time_limit_s,
+            time_limit_s,
             model,
             skills,
             graph,
             layout,
-            seat: seat_id,
-            hold_s: *hold_s,
+            task,
             ticks,
             zones: Arc::new(RwLock::new(zones)),
             start_pool,
@@ -138,7 +166,12 @@ impl MetaSetup {
 
     /// Observation width of the meta-controller.
     pub fn obs_dim(&self) -> usize {
-        self.layout.size + self.skills.len() + 1
+        self.layout.size + self.task.extra_dim() + self.skills.len() + 1
+    }
+
+    /// Control ticks per second.
+    pub fn control_hz(&self) -> f64 {
+        f64::from(self.model.scenario.scenario.rates.control_hz)
     }
 }
 
@@ -151,8 +184,8 @@ pub struct MetaEnv {
     current: Option<usize>,
     phase: usize,
     target: [f64; 2],
-    judge: SitJudge,
-    last_distance: f64,
+    task: TaskState,
+    over: EpisodeOverride,
     decisions: u32,
     switches: u32,
     skill_obs: Vec<f32>,
@@ -170,7 +203,8 @@ pub struct MetaEnv {
     record: Option<(RecordOptions, Recorder)>,
 }
 
-/// Names of the terms a recorded meta episode carries per control tick.
+/// Names of the terms a recorded sitting episode carries per control tick (other tasks: see
+/// [`TaskSpec::recorded_terms`]).
 pub const RECORDED_TERMS: [&str; 4] = ["seat_distance", "on_seat", "seat_contact_s", "min_distance"];
 
 impl MetaEnv {
@@ -186,8 +220,8 @@ impl MetaEnv {
             current: None,
             phase: 0,
             target: [0.0; 2],
-            judge: SitJudge::new(setup.hold_s, f64::from(setup.model.scenario.scenario.rates.control_hz)),
-            last_distance: 0.0,
+            task: setup.task.new_state(setup.control_hz()),
+            over: EpisodeOverride::default(),
             decisions: 0,
             switches: 0,
             skill_obs: vec![0.0; widest],
@@ -210,7 +244,7 @@ impl MetaEnv {
         let options = RecordOptions {
             title: title.into(),
             skills: self.setup.skills.iter().map(|s| s.name.clone()).collect(),
-            terms: RECORDED_TERMS.iter().map(|s| s.to_string()).collect(),
+            terms: self.setup.task.recorded_terms().iter().map(|s| s.to_string()).collect(),
             phase: "skill frame".into(),
             ghost: None,
             capacity: (self.setup.time_limit_s * f64::from(self.setup.model.scenario.scenario.rates.control_hz))
@@ -233,14 +267,8 @@ impl MetaEnv {
         if self.record.is_none() {
             return;
         }
-        let on = self.world.contacts().pelvis_on_prop(self.setup.seat);
-        let control_dt = 1.0 / f64::from(self.setup.model.scenario.scenario.rates.control_hz);
-        let terms = [
-            self.seat_distance() as f32,
-            f32::from(u8::from(on)),
-            (f64::from(self.judge.streak()) * control_dt) as f32,
-            self.judge.min_distance as f32,
-        ];
+        let control_dt = 1.0 / self.setup.control_hz();
+        let terms = self.task.recorded(&self.setup.task, &self.world, control_dt);
         let a = Annotation { skill: self.current, phase: self.phase as f64, terms: &terms, ghost_qpos: None };
         if let Some((_, recorder)) = self.record.as_mut() {
             recorder.record(&self.world, &a);
@@ -252,21 +280,28 @@ impl MetaEnv {
         &self.world
     }
 
-    /// The success judge of the current episode.
-    pub fn judge(&self) -> &SitJudge {
-        &self.judge
+    /// The world, for tests that place the character or props by hand.
+    pub fn world_mut(&mut self) -> &mut World {
+        &mut self.world
     }
 
-    /// Distance from the pelvis to the seat's top centre.
-    fn seat_distance(&self) -> f64 {
-        let p = self.world.pelvis_frame().pos;
-        let pl = self.world.placements()[self.setup.seat];
-        ((p[0] - pl.pos[0]).powi(2) + (p[1] - pl.pos[1]).powi(2) + (p[2] - pl.top).powi(2)).sqrt()
+    /// The task state of the current episode (the judges).
+    pub fn task(&self) -> &TaskState {
+        &self.task
+    }
+
+    /// Makes the following episodes start as `over` says (evaluation grids); the default
+    /// draws everything.
+    pub fn set_override(&mut self, over: EpisodeOverride) {
+        self.over = over;
     }
 
     fn observe(&self, obs: &mut [f32]) {
         let n = self.setup.layout.size;
         self.world.observe(&self.setup.layout, &mut obs[..n]);
+        let e = self.setup.task.extra_dim();
+        self.task.observe(&self.setup.task, &self.world, &mut obs[n..n + e]);
+        let n = n + e;
         let k = self.setup.skills.len();
         obs[n..n + k].fill(0.0);
         obs[n + k] = 0.0;
@@ -322,7 +357,7 @@ impl Env for MetaEnv {
     }
 
     fn term_names(&self) -> &[&'static str] {
-        &TERM_NAMES
+        self.setup.task.term_names()
     }
 
     fn options(&self) -> Option<Vec<bool>> {
@@ -339,14 +374,27 @@ impl Env for MetaEnv {
             zones[rng.random_range(0..zones.len())].clone()
         };
         self.start = self.world.reset_in_zone(&zone, rng).expect("zones come from the scenario");
+        if let Some((lx, ly, turn)) = self.over.start {
+            let f = self.world.placements()[self.setup.task.frame_prop()];
+            let (s, c) = f.yaw.sin_cos();
+            let (x, y) = (f.pos[0] + c * lx - s * ly, f.pos[1] + s * lx + c * ly);
+            let yaw = wrap_angle((f.pos[1] - y).atan2(f.pos[0] - x) + turn);
+            self.world.place_standing(x, y, yaw);
+            self.start = (x, y, yaw);
+        }
         self.zone = zone;
         self.current = None;
         self.phase = 0;
         self.decisions = 0;
         self.switches = 0;
         self.chosen.clear();
-        self.judge = SitJudge::new(self.setup.hold_s, f64::from(self.setup.model.scenario.scenario.rates.control_hz));
-        if let Some((k, pool)) = &self.setup.start_pool {
+        let hz = self.setup.control_hz();
+        let moved = self.task.prepare(&self.setup.task, &mut self.world, rng, hz, self.start, &self.over);
+        if moved {
+            let f = self.world.pelvis_frame();
+            self.start = (f.pos[0], f.pos[1], f.yaw());
+        }
+        if let Some((k, pool)) = self.setup.start_pool.as_ref().filter(|_| !moved) {
             let state = &pool.states[rng.random_range(0..pool.states.len())];
             let (x, y, yaw) = self.start;
             state.apply(&mut self.world, x, y, yaw).expect("pool states are validated on load");
@@ -354,8 +402,7 @@ impl Env for MetaEnv {
             self.phase = state.phase.min(self.setup.skills[*k].frames.saturating_sub(1));
             self.chosen.push(*k);
         }
-        self.last_distance = self.seat_distance();
-        self.judge.tick(false, self.last_distance);
+        self.task.begin(&self.setup.task, &mut self.world, rng, &self.over);
         if let Some((options, recorder)) = self.record.as_mut() {
             *recorder = Recorder::new(&self.setup.model, options.clone());
         }
@@ -393,56 +440,48 @@ impl Env for MetaEnv {
             self.target = [p[0] + yaw.cos() * dx - yaw.sin() * dy, p[1] + yaw.sin() * dx + yaw.cos() * dy];
         }
         let mut fell = false;
+        let mut failed = false;
         let mut ran = 0usize;
+        let control_dt = 1.0 / self.setup.control_hz();
+        let ends_on_success = self.setup.task.ends_on_success();
         for _ in 0..self.setup.ticks {
             self.tick(option);
             ran += 1;
-            let on = self.world.contacts().pelvis_on_prop(self.setup.seat);
-            let d = self.seat_distance();
-            self.judge.tick(on, d);
+            failed = self.task.tick(&self.setup.task, &self.world, control_dt);
             self.record_frame();
             if self.world.has_fallen() || !self.world.root_height().is_finite() {
                 fell = true;
                 break;
             }
-            if self.judge.succeeded || clip_over(self, option) {
+            if failed || (ends_on_success && self.task.succeeded()) || clip_over(self, option) {
                 break;
             }
         }
         self.decisions += 1;
-        let d = self.seat_distance();
-        let control_dt = 1.0 / f64::from(self.setup.model.scenario.scenario.rates.control_hz);
         let dt = ran as f64 * control_dt;
-        let on_seat = self.world.contacts().pelvis_on_prop(self.setup.seat);
-        let reward = if fell {
-            0.0
-        } else if on_seat {
-            1.0
-        } else {
-            (0.5 * -(d - self.last_distance) / dt) as f32
-        };
-        self.last_distance = d;
-        let success = self.judge.succeeded;
+        let reward = self.task.decision_reward(&self.setup.task, &self.world, fell, dt);
+        let success = self.task.succeeded();
         // Decisions can end early (a clip's end), so the limit is in simulated time, with a
         // decision count as a backstop.
         let out_of_time =
             self.world.time() >= self.setup.time_limit_s - 1e-9 || self.decisions >= 4 * self.setup.max_decisions;
-        let truncated = !success && !fell && out_of_time;
-        let done = success || fell || truncated;
+        let ended = (ends_on_success && success) || fell || failed;
+        let truncated = !ended && out_of_time;
+        let done = ended || truncated;
         let mut terms = [0.0; MAX_TERMS];
         if done {
             terms[0] = f32::from(u8::from(success));
-            terms[1] = self.judge.min_distance as f32;
             terms[2] = f32::from(u8::from(fell));
             terms[3] = self.world.time() as f32;
             terms[4] = self.switches as f32;
+            self.task.terms(&mut terms);
         }
         self.observe(obs);
         if obs.iter().any(|v| !v.is_finite()) {
             obs.fill(0.0);
             return StepOutcome { reward: 0.0, terminated: true, truncated: false, terms };
         }
-        StepOutcome { reward, terminated: success || fell, truncated, terms }
+        StepOutcome { reward, terminated: ended, truncated, terms }
     }
 
     fn snapshot(&self) -> Vec<f64> {
@@ -453,30 +492,27 @@ impl Env for MetaEnv {
             self.phase as f64,
             self.target[0],
             self.target[1],
-            self.last_distance,
             f64::from(self.decisions),
             f64::from(self.switches),
-            f64::from(self.judge.streak()),
-            f64::from(u8::from(self.judge.succeeded)),
-            self.judge.min_distance,
         ]);
+        out.extend(self.task.snapshot());
         out
     }
 
     fn restore(&mut self, state: &[f64]) -> std::result::Result<(), String> {
         let w = self.world.snapshot_len();
-        if state.len() != w + 10 {
-            return Err(format!("meta snapshot has {} values, expected {}", state.len(), w + 10));
+        let want = w + 6 + self.task.snapshot_len();
+        if state.len() != want {
+            return Err(format!("meta snapshot has {} values, expected {want}", state.len()));
         }
         self.world.restore(&state[..w]).map_err(|e| e.to_string())?;
         let s = &state[w..];
         self.current = (s[0] >= 0.0).then_some(s[0] as usize);
         self.phase = s[1] as usize;
         self.target = [s[2], s[3]];
-        self.last_distance = s[4];
-        self.decisions = s[5] as u32;
-        self.switches = s[6] as u32;
-        self.judge.restore(s[7] as u32, s[8] != 0.0, s[9]);
+        self.decisions = s[4] as u32;
+        self.switches = s[5] as u32;
+        self.task.restore(&s[6..]);
         Ok(())
     }
 }

@@ -209,7 +209,7 @@ pub fn save_worst(
 }
 
 fn trial_of(setup: &MetaSetup, env: &MetaEnv, index: usize, zone: &str, terms: &[f32], names: &[String]) -> Trial {
-    let chair = env.world().placements()[setup.seat];
+    let chair = env.world().placements()[setup.task.frame_prop()];
     let (x, y, _) = env.start;
     // Side in the chair's frame: +y of the chair is its left.
     let (s, c) = chair.yaw.sin_cos();

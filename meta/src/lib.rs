@@ -1,4 +1,4 @@
-//! The high level of the sitting method: the skill graph, the success test, and (in progress)
+//! The high level: the skill graph, the tasks' success tests (sitting, the warehouse, the toss),
 //! the meta-controller environment over frozen skills, its training and evaluation.
 
 pub mod env;
@@ -6,9 +6,14 @@ pub mod error;
 pub mod eval;
 pub mod graph;
 pub mod judge;
+pub mod task;
+pub mod task_eval;
+pub mod toss;
 pub mod train;
+pub mod warehouse;
 
 pub use env::{MetaEnv, MetaSetup};
 pub use error::{MetaError, Result};
 pub use graph::SkillGraph;
 pub use judge::SitJudge;
+pub use task::{EpisodeOverride, TaskSpec, TaskState};

@@ -431,6 +431,58 @@ pub fn transition_matrix(
     })
 }
 
+/// A grid of rates (0–1; `None`: no trials) over two swept quantities: row `i`, column `j` is
+/// `rates[i][j]` at `ys[i]`, `xs[j]`, shaded from red (0) to green (1) and labelled with the rate
+/// in percent and its trial count. For pick-up success over start positions and catch rate over
+/// throw speeds.
+pub fn grid_map(
+    stem: &Path,
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    xs: &[f64],
+    ys: &[f64],
+    cells: &[Vec<(Option<f64>, usize)>],
+) -> Result<[PathBuf; 2]> {
+    if cells.len() != ys.len() || cells.iter().any(|r| r.len() != xs.len()) || xs.is_empty() || ys.is_empty() {
+        return Err(ReportError::Invalid {
+            path: stem.to_path_buf(),
+            message: format!("grid is not {} × {} (and non-empty)", ys.len(), xs.len()),
+        });
+    }
+    let (cw, ch, label_w, top) = (72i32, 44i32, 90i32, 50i32);
+    let w = (label_w + cw * xs.len() as i32 + 20).max(480) as u32;
+    let h = (top + ch * ys.len() as i32 + 60) as u32;
+    render!(stem, (w, h), |area| {
+        let area = area.titled(title, ("sans-serif", 18)).map_err(|e| e.to_string())?;
+        let text = |s: String, x: i32, y: i32, size: u32| Text::new(s, (x, y), ("sans-serif", size).into_font());
+        area.draw(&text(y_label.to_string(), 6, 4, 13)).map_err(|e| e.to_string())?;
+        // Rows from the top: the largest y first, as on a plot.
+        for (r, i) in (0..ys.len()).rev().enumerate() {
+            let y = top + r as i32 * ch;
+            area.draw(&text(format!("{:.2}", ys[i]), 10, y + ch / 2 - 7, 12)).map_err(|e| e.to_string())?;
+            for (j, &(rate, n)) in cells[i].iter().enumerate() {
+                let x = label_w + j as i32 * cw;
+                let fill = match rate {
+                    Some(v) => mix(RGBColor(244, 160, 150), RGBColor(120, 200, 120), v),
+                    None => RGBColor(235, 235, 235),
+                };
+                area.draw(&Rectangle::new([(x, y), (x + cw - 3, y + ch - 3)], fill.filled()))
+                    .map_err(|e| e.to_string())?;
+                let label = rate.map_or_else(|| "–".to_string(), |v| format!("{:.0}%", 100.0 * v));
+                area.draw(&text(label, x + 8, y + 6, 13)).map_err(|e| e.to_string())?;
+                area.draw(&text(format!("n={n}"), x + 8, y + 24, 10)).map_err(|e| e.to_string())?;
+            }
+        }
+        let bottom = top + ch * ys.len() as i32 + 6;
+        for (j, v) in xs.iter().enumerate() {
+            area.draw(&text(format!("{v:.2}"), label_w + j as i32 * cw + 14, bottom, 12)).map_err(|e| e.to_string())?;
+        }
+        area.draw(&text(x_label.to_string(), label_w, bottom + 22, 13)).map_err(|e| e.to_string())?;
+        Ok(())
+    })
+}
+
 /// One curriculum sample: after `episodes` training episodes, zone `zone` (index into the
 /// schedule's zones) is the newest open zone and the windowed success rate is `success`.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use repertoire_report::{
-    CurriculumPoint, ReportError, StartPoint, learning_curves, read_table, success_map, transition_matrix,
+    CurriculumPoint, ReportError, StartPoint, grid_map, learning_curves, read_table, success_map, transition_matrix,
 };
 
 fn temp_dir(name: &str) -> PathBuf {
@@ -117,4 +117,21 @@ fn curriculum_schedule_shows_the_switches() {
     })
     .unwrap();
     assert_eq!(t.text_column("b").unwrap(), ["x"]);
+}
+
+#[test]
+fn a_grid_map_labels_every_cell_and_a_misshapen_grid_is_refused() {
+    let dir = temp_dir("grid");
+    let xs = [1.5, 3.0, 4.5];
+    let ys = [-0.5, 0.5];
+    let cells =
+        vec![vec![(Some(0.0), 10), (Some(0.5), 10), (None, 0)], vec![(Some(1.0), 4), (Some(0.25), 4), (Some(0.1), 10)]];
+    let [png, svg] = grid_map(&dir.join("zone"), "catch rate", "v_x (m/s)", "lateral (m/s)", &xs, &ys, &cells).unwrap();
+    assert!(ink(&png) > 0.05, "the cells are shaded");
+    let text = std::fs::read_to_string(svg).unwrap();
+    for label in ["catch rate", "v_x (m/s)", "50%", "100%", "25%", "n=4", "–"] {
+        assert!(text.contains(label), "{label} missing");
+    }
+    let err = grid_map(&dir.join("bad"), "t", "x", "y", &xs, &ys, &cells[..1]).unwrap_err();
+    assert!(matches!(err, ReportError::Invalid { .. }), "{err}");
 }

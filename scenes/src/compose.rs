@@ -62,7 +62,7 @@ fn prop_mjcf(out: &mut String, prop: &Prop) {
     let name = xml_escape(prop.name());
     let at = prop.pose();
     let q = yaw_quat(at.yaw_deg.nominal());
-    let (x, y) = (at.x.nominal(), at.y.nominal());
+    let (x, y) = at.nominal_xy();
     let geom = |out: &mut String, part: &str, attrs: String, rgba: &str| {
         let _ = writeln!(out, r#"      <geom name="{name}/{part}" {attrs} rgba="{rgba}" {CONTACT}/>"#);
     };

@@ -6,6 +6,8 @@
 
 use crate::error::{Location, Result, SceneError};
 use crate::param::Param;
+use crate::throw::ThrowSpec;
+use rand::Rng;
 use serde::{Deserialize, Serialize};
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};
@@ -105,14 +107,24 @@ impl Rates {
     }
 }
 
-/// A placement on the floor: position in metres and heading in degrees about +z.
+/// A placement on the floor: position in metres and heading in degrees about +z. The position
+/// is `(x, y)` plus an optional polar offset of `radius` metres at `angle_deg` (counter-clockwise
+/// from +x), so `(radius: (2.5, 3.5), angle_deg: (-30, 30))` puts a prop 2.5–3.5 m from `(x, y)`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Pose {
-    /// x in metres.
+    /// x in metres (the centre of the polar offset).
+    #[serde(default = "zero")]
     pub x: Param,
-    /// y in metres.
+    /// y in metres (the centre of the polar offset).
+    #[serde(default = "zero")]
     pub y: Param,
+    /// Distance from `(x, y)` in metres (0: at `(x, y)`).
+    #[serde(default = "zero")]
+    pub radius: Param,
+    /// Direction of the `radius` offset in degrees, counter-clockwise from +x.
+    #[serde(default = "zero")]
+    pub angle_deg: Param,
     /// Height of the prop's base above the floor in metres (free props: above what they rest on).
     #[serde(default = "zero")]
     pub z: Param,
@@ -127,7 +139,22 @@ fn zero() -> Param {
 
 impl Default for Pose {
     fn default() -> Self {
-        Self { x: zero(), y: zero(), z: zero(), yaw_deg: zero() }
+        Self { x: zero(), y: zero(), radius: zero(), angle_deg: zero(), z: zero(), yaw_deg: zero() }
+    }
+}
+
+impl Pose {
+    /// The floor position at every range's middle.
+    pub fn nominal_xy(&self) -> (f64, f64) {
+        let (r, a) = (self.radius.nominal(), self.angle_deg.nominal().to_radians());
+        (self.x.nominal() + r * a.cos(), self.y.nominal() + r * a.sin())
+    }
+
+    /// A floor position for one episode (fixed values draw nothing from `rng`).
+    pub fn sample_xy(&self, rng: &mut impl Rng) -> (f64, f64) {
+        let (x, y) = (self.x.sample(rng), self.y.sample(rng));
+        let (r, a) = (self.radius.sample(rng), self.angle_deg.sample(rng).to_radians());
+        (x + r * a.cos(), y + r * a.sin())
     }
 }
 
@@ -413,12 +440,133 @@ pub enum Task {
         #[serde(default = "Task::default_limit")]
         time_limit_s: f64,
     },
+    /// Catch & Carry's warehouse: go to the pedestal holding the box, lift the box, carry it to
+    /// another pedestal, put it down, and again (GOTO → LIFT → CARRY → PUTDOWN → GOTO …).
+    Warehouse(Warehouse),
+    /// Catch & Carry's toss: catch a ball thrown at the character and put it into a bucket.
+    Toss(Toss),
     /// No task: the world just runs (for clips, benchmarks and free play).
     Free {
         /// Episode length in seconds.
         #[serde(default = "Task::default_limit")]
         time_limit_s: f64,
     },
+}
+
+/// A phase of the warehouse task, in the order they repeat.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum WarehousePhase {
+    /// Walk to the pedestal the box is on.
+    Goto,
+    /// Take the box off it with both hands.
+    Lift,
+    /// Carry it to the target pedestal.
+    Carry,
+    /// Put it down on the target pedestal.
+    PutDown,
+}
+
+impl WarehousePhase {
+    /// Every phase in task order.
+    pub const ALL: [WarehousePhase; 4] =
+        [WarehousePhase::Goto, WarehousePhase::Lift, WarehousePhase::Carry, WarehousePhase::PutDown];
+
+    /// Position in task order (0 = GOTO), the index of its one-hot observation.
+    pub fn index(self) -> usize {
+        self as usize
+    }
+
+    /// The phase after this one (PUTDOWN is followed by GOTO).
+    pub fn next(self) -> Self {
+        Self::ALL[(self.index() + 1) % Self::ALL.len()]
+    }
+
+    /// The paper's name (`GOTO`, `LIFT`, `CARRY`, `PUTDOWN`).
+    pub fn label(self) -> &'static str {
+        ["GOTO", "LIFT", "CARRY", "PUTDOWN"][self.index()]
+    }
+}
+
+/// The warehouse task (Merel et al. 2020, Catch & Carry): the success test of each phase is
+/// read from contacts.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Warehouse {
+    /// The free box to move.
+    #[serde(rename = "box")]
+    pub box_: String,
+    /// The pedestals the box moves between (at least two); the box starts `on` one of them.
+    pub pedestals: Vec<String>,
+    /// GOTO and CARRY end when the pelvis is this close (horizontally, m) to the focal
+    /// pedestal's centre.
+    #[serde(default = "Warehouse::default_reach")]
+    pub reach_m: f64,
+    /// PUTDOWN ends when the box touches the target pedestal at this many points or more.
+    #[serde(default = "Warehouse::default_contacts")]
+    pub rest_contacts: usize,
+    /// Phases an episode may start in (drawn uniformly per episode).
+    #[serde(default = "Warehouse::default_start")]
+    pub start_phases: Vec<WarehousePhase>,
+    /// Episode length in seconds.
+    #[serde(default = "Warehouse::default_limit")]
+    pub time_limit_s: f64,
+}
+
+impl Warehouse {
+    fn default_reach() -> f64 {
+        0.65
+    }
+    fn default_contacts() -> usize {
+        4
+    }
+    fn default_start() -> Vec<WarehousePhase> {
+        WarehousePhase::ALL.to_vec()
+    }
+    fn default_limit() -> f64 {
+        15.0
+    }
+}
+
+/// Where the ball is aimed, relative to the character at the throw.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CatchPoint {
+    /// Metres in front of the pelvis.
+    pub forward: f64,
+    /// Height above the floor in metres.
+    pub height: f64,
+}
+
+impl Default for CatchPoint {
+    fn default() -> Self {
+        CatchPoint { forward: 0.4, height: 1.2 }
+    }
+}
+
+/// The toss task (Catch & Carry): a ball is thrown at the character at the start of the episode;
+/// it must catch it (both hands on it, off the floor) and put it into the bucket.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Toss {
+    /// The free ball that is thrown.
+    pub ball: String,
+    /// The bucket it goes into.
+    pub bucket: String,
+    /// How the ball is thrown (defaults: the paper's ranges).
+    #[serde(default)]
+    pub throw: ThrowSpec,
+    /// Where the ball is aimed.
+    #[serde(default)]
+    pub catch_at: CatchPoint,
+    /// Episode length in seconds.
+    #[serde(default = "Toss::default_limit")]
+    pub time_limit_s: f64,
+}
+
+impl Toss {
+    fn default_limit() -> f64 {
+        10.0
+    }
 }
 
 impl Default for Task {
@@ -437,8 +585,20 @@ impl Task {
 
     /// Episode length in seconds.
     pub fn time_limit_s(&self) -> f64 {
-        match *self {
-            Task::Sit { time_limit_s, .. } | Task::Free { time_limit_s } => time_limit_s,
+        match self {
+            Task::Sit { time_limit_s, .. } | Task::Free { time_limit_s } => *time_limit_s,
+            Task::Warehouse(w) => w.time_limit_s,
+            Task::Toss(t) => t.time_limit_s,
+        }
+    }
+
+    /// The task's name as written in the file (`Sit`, `Warehouse`, `Toss`, `Free`).
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Task::Sit { .. } => "Sit",
+            Task::Warehouse(_) => "Warehouse",
+            Task::Toss(_) => "Toss",
+            Task::Free { .. } => "Free",
         }
     }
 }
@@ -642,6 +802,8 @@ impl ScenarioFile {
                     return Err(self.invalid(Some("time_limit_s"), "time_limit_s must be positive"));
                 }
             }
+            Task::Warehouse(w) => self.validate_warehouse(w)?,
+            Task::Toss(t) => self.validate_toss(t)?,
         }
 
         let mut skills = HashSet::new();
@@ -695,6 +857,82 @@ impl ScenarioFile {
                     "the curriculum needs 0 < advance_at <= 1 and a window of at least 1 episode",
                 ));
             }
+        }
+        Ok(())
+    }
+
+    /// The prop `name` must exist and be of kind `kind`; `role` names the field for messages.
+    fn expect_prop(&self, name: &str, kind: &str, role: &str) -> Result<&Prop> {
+        match self.prop(name) {
+            Some(p) if p.kind() == kind => Ok(p),
+            Some(other) => {
+                Err(self.invalid(Some(name), format!("{role} `{name}` is a {}, not a {kind}", other.kind())))
+            }
+            None => Err(self.unknown_prop(name, role)),
+        }
+    }
+
+    fn validate_warehouse(&self, w: &Warehouse) -> Result<()> {
+        let crate_ = self.expect_prop(&w.box_, "box", "the warehouse task's `box`")?;
+        if w.pedestals.len() < 2 {
+            return Err(self.invalid(
+                Some("pedestals"),
+                format!("the warehouse task needs at least two pedestals, got {}", w.pedestals.len()),
+            ));
+        }
+        let mut seen = HashSet::new();
+        for p in &w.pedestals {
+            self.expect_prop(p, "pedestal", "the warehouse task's `pedestals`")?;
+            if !seen.insert(p.as_str()) {
+                return Err(self.invalid(Some(p), format!("the warehouse task lists pedestal `{p}` twice")));
+            }
+        }
+        match crate_.rests_on() {
+            Some(base) if w.pedestals.iter().any(|p| p == base) => {}
+            _ => {
+                return Err(self.invalid(
+                    Some(&w.box_),
+                    format!(
+                        "box `{}` must start `on` one of the warehouse pedestals ({})",
+                        w.box_,
+                        w.pedestals.join(", ")
+                    ),
+                ));
+            }
+        }
+        if !(w.reach_m > 0.0 && w.reach_m.is_finite()) {
+            return Err(self.invalid(Some("reach_m"), format!("reach_m must be positive, got {}", w.reach_m)));
+        }
+        if w.rest_contacts == 0 {
+            return Err(self.invalid(Some("rest_contacts"), "rest_contacts must be at least 1"));
+        }
+        if w.start_phases.is_empty() {
+            return Err(self.invalid(Some("start_phases"), "the warehouse task lists no start phase"));
+        }
+        if !(w.time_limit_s > 0.0 && w.time_limit_s.is_finite()) {
+            return Err(self.invalid(Some("time_limit_s"), "time_limit_s must be positive"));
+        }
+        Ok(())
+    }
+
+    fn validate_toss(&self, t: &Toss) -> Result<()> {
+        self.expect_prop(&t.ball, "ball", "the toss task's `ball`")?;
+        self.expect_prop(&t.bucket, "bucket", "the toss task's `bucket`")?;
+        if let Some(Prop::Ball(b)) = self.prop(&t.ball)
+            && b.on.is_some()
+        {
+            return Err(self.invalid(Some(&t.ball), format!("the thrown ball `{}` cannot start `on` a prop", t.ball)));
+        }
+        t.throw.validate("the toss task").map_err(|m| self.invalid(Some("throw"), m))?;
+        let c = t.catch_at;
+        if !(c.height > 0.0 && c.height.is_finite() && c.forward.is_finite()) {
+            return Err(self.invalid(
+                Some("catch_at"),
+                format!("catch_at needs a finite forward offset and a positive height, got {c:?}"),
+            ));
+        }
+        if !(t.time_limit_s > 0.0 && t.time_limit_s.is_finite()) {
+            return Err(self.invalid(Some("time_limit_s"), "time_limit_s must be positive"));
         }
         Ok(())
     }

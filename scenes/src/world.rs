@@ -221,8 +221,9 @@ impl World {
             .zip(&shared.props)
             .map(|(p, idx)| {
                 let at = p.pose();
+                let (x, y) = at.nominal_xy();
                 PropPlacement {
-                    pos: [at.x.nominal(), at.y.nominal(), 0.0],
+                    pos: [x, y, 0.0],
                     yaw: at.yaw_deg.nominal().to_radians(),
                     top: idx.built_height,
                     scale: 1.0,
@@ -316,7 +317,7 @@ impl World {
         rescale: &mut Vec<(usize, f64, f64)>,
     ) -> PropPlacement {
         let at = prop.pose();
-        let (mut x, mut y) = (at.x.sample(rng), at.y.sample(rng));
+        let (mut x, mut y) = at.sample_xy(rng);
         let z = at.z.sample(rng);
         let yaw = at.yaw_deg.sample(rng).to_radians();
         let floor = match base {
@@ -370,6 +371,18 @@ impl World {
                 model.geom_size_mut()[g] = base.geom_size()[g].map(|v| v * scale);
                 model.geom_rbound_mut()[g] = base.geom_rbound()[g] * scale;
                 model.geom_aabb_mut()[g] = base.geom_aabb()[g].map(|v| v * scale);
+            }
+        }
+        // Recompute the constants MuJoCo derives from masses and inertias at compile time
+        // (subtree masses, the mass matrix at qpos0, ...), as the compiler would have.
+        // SAFETY: `model` is a valid, exclusively owned mjModel; the scratch mjData is made for
+        // it, used only by mj_setConst and freed right after.
+        unsafe {
+            let m = model.ffi_mut() as *mut mujoco_rs::mujoco_c::mjModel;
+            let d = mujoco_rs::mujoco_c::mj_makeData(m);
+            if !d.is_null() {
+                mujoco_rs::mujoco_c::mj_setConst(m, d);
+                mujoco_rs::mujoco_c::mj_deleteData(d);
             }
         }
         self.data.swap_model(Arc::new(model));

@@ -1,5 +1,5 @@
 //! `repertoire meta train [FILE]` and `repertoire meta eval [FILE]`: the meta-controller of a
-//! sitting scenario over the skill library.
+//! scenario (sitting, the warehouse, the toss) over the skill library.
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -7,14 +7,24 @@ use std::sync::Arc;
 use anyhow::{Context, Result};
 use clap::Subcommand;
 use repertoire_meta::eval::{evaluate, save_worst};
+use repertoire_meta::task_eval::{StartGrid, evaluate_toss, evaluate_warehouse};
 use repertoire_meta::train::{MetaTrainOptions, default_ppo, load, train};
-use repertoire_meta::{MetaSetup, SkillGraph};
+use repertoire_meta::{MetaSetup, SkillGraph, TaskSpec};
 use repertoire_scenes::WorldModel;
 
 /// The committed skill library and meta-controller.
 pub const DEFAULT_LIBRARY: &str = "skills/library";
 /// Where the default meta-controller lives (inside the library).
 pub const DEFAULT_META: &str = "skills/library/meta";
+
+/// The meta-controller folder of a scenario when none is given: [`DEFAULT_META`] for sitting,
+/// `skills/library/meta-<scenario name>` for other tasks (so they never overwrite it).
+pub fn default_meta(setup: &MetaSetup) -> PathBuf {
+    match setup.task {
+        TaskSpec::Sit { .. } => PathBuf::from(DEFAULT_META),
+        _ => Path::new(DEFAULT_LIBRARY).join(format!("meta-{}", setup.model.scenario.scenario.name)),
+    }
+}
 
 #[derive(Debug, Subcommand)]
 pub enum MetaCommand {
@@ -25,9 +35,10 @@ pub enum MetaCommand {
         /// Skill library.
         #[arg(long, default_value = DEFAULT_LIBRARY)]
         library: PathBuf,
-        /// Where the trained controller goes.
-        #[arg(long, default_value = DEFAULT_META)]
-        out: PathBuf,
+        /// Where the trained controller goes (default: skills/library/meta for sitting,
+        /// skills/library/meta-<scenario name> otherwise).
+        #[arg(long)]
+        out: Option<PathBuf>,
         /// Run directory (default: runs/meta-<time>).
         #[arg(long)]
         run_dir: Option<PathBuf>,
@@ -50,20 +61,32 @@ pub enum MetaCommand {
         #[arg(long, value_delimiter = ',')]
         skills: Vec<String>,
     },
-    /// Evaluate a trained meta-controller: success and minimum distance per zone, transition
-    /// matrices; writes report.md, trials.csv, report.json.
+    /// Evaluate a trained meta-controller. Sitting: success and minimum distance per zone,
+    /// transition matrices. Warehouse: phases completed per episode by start phase and a pick-up
+    /// map over a start grid. Toss: catch rate and return over a grid of throw speeds (the strike
+    /// zone). Writes report.md, a CSV, report.json and pictures.
     Eval {
         /// Scenario RON file (default: the built-in scenes/sit.ron).
         file: Option<PathBuf>,
         /// Skill library.
         #[arg(long, default_value = DEFAULT_LIBRARY)]
         library: PathBuf,
-        /// The trained controller.
-        #[arg(long, default_value = DEFAULT_META)]
-        meta: PathBuf,
-        /// Trials per zone.
-        #[arg(long, default_value_t = 10_000)]
-        trials: usize,
+        /// The trained controller (default: as `meta train` writes it).
+        #[arg(long)]
+        meta: Option<PathBuf>,
+        /// Trials per zone (sitting, default 10000) or episodes (warehouse, default 200).
+        #[arg(long)]
+        trials: Option<usize>,
+        /// Cells per side of the warehouse's pick-up map (default 9; 0: none) or of the toss's
+        /// strike zone (default 7).
+        #[arg(long)]
+        grid: Option<usize>,
+        /// Trials per grid cell.
+        #[arg(long, default_value_t = 10)]
+        grid_trials: usize,
+        /// Half the side of the warehouse's start grid around the box's pedestal (m).
+        #[arg(long, default_value_t = 4.0)]
+        grid_half_m: f64,
         /// Zones (default: all of the scenario's).
         #[arg(long, value_delimiter = ',')]
         zones: Vec<String>,
@@ -108,6 +131,7 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
     match cmd {
         MetaCommand::Train { file, library, out, run_dir, iterations, envs, seed, no_curriculum, chain, skills } => {
             let setup = setup(file.as_ref(), &library, &chain, &skills)?;
+            let out = out.unwrap_or_else(|| default_meta(&setup));
             let secs = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
             let run_dir = run_dir.unwrap_or_else(|| PathBuf::from(format!("runs/meta-{secs}-s{seed}")));
             let ppo =
@@ -144,9 +168,50 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
             println!("meta-controller written to {}; run in {}", out.display(), run_dir.display());
             Ok(())
         }
-        MetaCommand::Eval { file, library, meta, trials, zones, batch, seed, out, chain, skills, worst } => {
+        MetaCommand::Eval {
+            file,
+            library,
+            meta,
+            trials,
+            grid,
+            grid_trials,
+            grid_half_m,
+            zones,
+            batch,
+            seed,
+            out,
+            chain,
+            skills,
+            worst,
+        } => {
             let setup = setup(file.as_ref(), &library, &chain, &skills)?;
+            let meta = meta.unwrap_or_else(|| default_meta(&setup));
             let (_, head) = load(&meta, &setup)?;
+            let out = out.unwrap_or_else(|| meta.join("eval"));
+            match setup.task {
+                TaskSpec::Sit { .. } => {}
+                TaskSpec::Warehouse(_) => {
+                    let n = grid.unwrap_or(9);
+                    let map = (n > 0).then_some(StartGrid { n, half_m: grid_half_m, trials: grid_trials });
+                    let report = evaluate_warehouse(&setup, &head, trials.unwrap_or(200), map, seed)?;
+                    print!("{}", report.markdown());
+                    report.write(&out)?;
+                    println!(
+                        "\nreport.md, trials.csv, report.json, pickup.png and goto.png written to {}",
+                        out.display()
+                    );
+                    return Ok(());
+                }
+                TaskSpec::Toss(_) => {
+                    let n = grid.unwrap_or(7).max(1);
+                    let report = evaluate_toss(&setup, &head, n, n, grid_trials, seed)?;
+                    print!("{}", report.markdown());
+                    report.write(&out)?;
+                    println!("\nreport.md, throws.csv, report.json and strike_zone.png written to {}", out.display());
+                    return Ok(());
+                }
+            }
+            let trials = trials.unwrap_or(10_000);
             let zones = if zones.is_empty() {
                 setup.model.scenario.scenario.spawn.iter().map(|z| z.name.clone()).collect()
             } else {
@@ -154,7 +219,6 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
             };
             let report = evaluate(&setup, &head, &zones, trials, batch, seed)?;
             print!("{}", report.markdown());
-            let out = out.unwrap_or_else(|| meta.join("eval"));
             report.write(&out)?;
             println!("\nreport.md, trials.csv and report.json written to {}", out.display());
             let recs = save_worst(&setup, &head, &report, &zones, trials, seed, worst, false, &out.join("worst"))?;

@@ -42,7 +42,7 @@ pub enum Command {
     /// Train, fine-tune and evaluate skills.
     #[command(subcommand)]
     Skill(skill::SkillCommand),
-    /// Train and evaluate the meta-controller of a sitting scenario.
+    /// Train and evaluate the meta-controller of a scenario (sitting, warehouse, toss).
     #[command(subcommand)]
     Meta(meta::MetaCommand),
     /// Write a recording (or every recording in a folder) as a self-contained HTML replay page.

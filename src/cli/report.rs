@@ -4,7 +4,8 @@
 //!
 //! What it looks for in DIR: `metrics.csv` (a training run: learning curves with every reward
 //! term), `curriculum.csv` (a meta-controller run: the zone schedule), `report.json` or
-//! `eval/report.json` (an evaluation: the zone table, the success map, transition matrices),
+//! `eval/report.json` (an evaluation: the zone table, the success map, transition matrices; or a
+//! warehouse's phase table and pick-up maps, or a toss's strike zone),
 //! and `table.md` (an ablation's table).
 
 use std::fmt::Write as _;
@@ -12,6 +13,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use repertoire_meta::eval::MetaReport;
+use repertoire_meta::task_eval::{TossReport, WarehouseReport};
 use repertoire_report::{CurriculumPoint, curriculum_schedule, learning_curves, read_table, write_atomic};
 
 /// One section of the page: a heading, Markdown text (tables included) and charts.
@@ -96,15 +98,31 @@ pub fn run(dir: &Path) -> Result<PathBuf> {
     let report = [dir.join("report.json"), dir.join("eval").join("report.json")].into_iter().find(|p| p.exists());
     if let Some(path) = report {
         let text = std::fs::read_to_string(&path).with_context(|| format!("{}: cannot read", path.display()))?;
-        let r: MetaReport =
-            serde_json::from_str(&text).with_context(|| format!("{}: not an evaluation report", path.display()))?;
-        r.plot(&out)?;
-        let mut charts = vec![[out.join("heatmap.png"), out.join("heatmap.svg")]];
-        for (side, _) in &r.transitions {
-            let stem = out.join(format!("transitions-{side}"));
-            charts.push([stem.with_extension("png"), stem.with_extension("svg")]);
+        let pair = |stem: &Path| [stem.with_extension("png"), stem.with_extension("svg")];
+        match serde_json::from_str::<MetaReport>(&text) {
+            Ok(r) => {
+                r.plot(&out)?;
+                let mut charts = vec![[out.join("heatmap.png"), out.join("heatmap.svg")]];
+                for (side, _) in &r.transitions {
+                    charts.push(pair(&out.join(format!("transitions-{side}"))));
+                }
+                sections.push(Section { title: "Evaluation".into(), text: r.markdown(), charts });
+            }
+            Err(sit) => {
+                // A warehouse or toss evaluation; otherwise the sitting report's complaint.
+                if let Ok(r) = serde_json::from_str::<WarehouseReport>(&text) {
+                    let charts = r.plot(&out)?.iter().map(|s| pair(s)).collect();
+                    sections.push(Section { title: "Warehouse evaluation".into(), text: r.markdown(), charts });
+                } else if let Ok(r) = serde_json::from_str::<TossReport>(&text) {
+                    let charts = vec![pair(&r.plot(&out)?)];
+                    sections.push(Section { title: "Toss evaluation".into(), text: r.markdown(), charts });
+                } else {
+                    return Err(
+                        anyhow::Error::new(sit).context(format!("{}: not an evaluation report", path.display()))
+                    );
+                }
+            }
         }
-        sections.push(Section { title: "Evaluation".into(), text: r.markdown(), charts });
     }
 
     let worst = dir.join("worst");

@@ -9,6 +9,8 @@ use anyhow::Result;
 use clap::Args;
 use rand::SeedableRng;
 use rand::rngs::StdRng;
+use repertoire_meta::task_eval::{evaluate_toss, evaluate_warehouse};
+use repertoire_meta::{MetaSetup, TaskSpec};
 use repertoire_scenes::WorldModel;
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -27,9 +29,10 @@ pub struct RunArgs {
     /// Skill library.
     #[arg(long, default_value = super::meta::DEFAULT_LIBRARY)]
     pub library: PathBuf,
-    /// Trained meta-controller.
-    #[arg(long, default_value = super::meta::DEFAULT_META)]
-    pub meta: PathBuf,
+    /// Trained meta-controller (default: skills/library/meta for sitting,
+    /// skills/library/meta-<scenario name> otherwise).
+    #[arg(long)]
+    pub meta: Option<PathBuf>,
     /// Trials per spawn zone.
     #[arg(long, default_value_t = 20)]
     pub trials: usize,
@@ -40,14 +43,28 @@ pub struct RunArgs {
 }
 
 pub fn run(args: RunArgs) -> Result<()> {
-    if args.meta.join("meta.ron").exists() {
-        let setup = super::meta::setup(args.file.as_ref(), &args.library, &[], &[])?;
-        let (manifest, head) = repertoire_meta::train::load(&args.meta, &setup)?;
+    let meta = match &args.meta {
+        Some(m) => m.clone(),
+        None => default_meta(args.file.as_ref())?,
+    };
+    if meta.join("meta.ron").exists() {
+        // The skills the controller was trained over (a warehouse controller may have been
+        // trained on walk and the turns only); its manifest is checked in full by `load`.
+        let skills: Vec<String> = std::fs::read_to_string(meta.join("meta.ron"))
+            .ok()
+            .and_then(|text| ron::from_str::<repertoire_meta::train::MetaManifest>(&text).ok())
+            .map(|m| m.skills)
+            .unwrap_or_default();
+        let setup = super::meta::setup(args.file.as_ref(), &args.library, &[], &skills)?;
+        let (manifest, head) = repertoire_meta::train::load(&meta, &setup)?;
+        if !matches!(setup.task, TaskSpec::Sit { .. }) {
+            return run_task(&setup, &head, &meta, manifest.iterations, &args);
+        }
         let zones: Vec<String> = setup.model.scenario.scenario.spawn.iter().map(|z| z.name.clone()).collect();
         println!(
             "scenario {} — meta-controller {} ({} iterations) over skills {}; {} trials per zone",
             setup.model.scenario.scenario.name,
-            args.meta.display(),
+            meta.display(),
             manifest.iterations,
             manifest.skills.join(", "),
             args.trials
@@ -85,7 +102,7 @@ pub fn run(args: RunArgs) -> Result<()> {
     }
     println!(
         "no trained meta-controller at {} (train one with `repertoire meta train`); showing the scene instead",
-        args.meta.display()
+        meta.display()
     );
     let scenario = super::load_scenario(args.file.as_ref())?;
     let model = Arc::new(WorldModel::build(scenario)?);
@@ -136,5 +153,51 @@ pub fn run(args: RunArgs) -> Result<()> {
     }
     let wall = t0.elapsed().as_secs_f64();
     println!("simulated {steps} physics steps in {wall:.2} s ({:.0} steps/s)", steps as f64 / wall);
+    Ok(())
+}
+
+/// The meta-controller folder `run` looks in for `file`'s scenario (see
+/// [`super::meta::default_meta`]), read from the scenario's task without loading skills.
+fn default_meta(file: Option<&PathBuf>) -> Result<PathBuf> {
+    let scenario = super::load_scenario(file)?;
+    let s = &scenario.scenario;
+    Ok(match s.task {
+        repertoire_scenes::scenario::Task::Sit { .. } => PathBuf::from(super::meta::DEFAULT_META),
+        _ => std::path::Path::new(super::meta::DEFAULT_LIBRARY).join(format!("meta-{}", s.name)),
+    })
+}
+
+/// A quick evaluation of a warehouse or toss meta-controller: `trials` episodes (warehouse) or
+/// a 3 × 3 strike zone with `trials / 9` throws per cell (toss).
+fn run_task(
+    setup: &Arc<MetaSetup>,
+    head: &repertoire_learn::acting::ActingHybrid,
+    meta: &std::path::Path,
+    iterations: usize,
+    args: &RunArgs,
+) -> Result<()> {
+    println!(
+        "scenario {} — meta-controller {} ({iterations} iterations) over skills {}",
+        setup.model.scenario.scenario.name,
+        meta.display(),
+        setup.skills.iter().map(|s| s.name.as_str()).collect::<Vec<_>>().join(", ")
+    );
+    let secs = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
+    let out = args.out.clone().unwrap_or_else(|| PathBuf::from(format!("runs/run-{secs}-s{}", args.seed)));
+    let t0 = Instant::now();
+    if let TaskSpec::Warehouse(_) = setup.task {
+        let report = evaluate_warehouse(setup, head, args.trials, None, args.seed)?;
+        print!("{}", report.markdown());
+        report.write(&out)?;
+    } else {
+        let report = evaluate_toss(setup, head, 3, 3, (args.trials / 9).max(1), args.seed)?;
+        print!("{}", report.markdown());
+        report.write(&out)?;
+    }
+    println!(
+        "\nin {:.1} s; reports written to {}; `repertoire meta eval` runs the full evaluation",
+        t0.elapsed().as_secs_f64(),
+        out.display()
+    );
     Ok(())
 }

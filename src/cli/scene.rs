@@ -2,8 +2,8 @@
 
 use anyhow::Result;
 use clap::Subcommand;
-use repertoire_scenes::WorldModel;
 use repertoire_scenes::scenario::{Facing, Prop};
+use repertoire_scenes::{Param, WorldModel};
 use std::path::PathBuf;
 use std::sync::Arc;
 
@@ -84,7 +84,12 @@ fn check(file: Option<PathBuf>) -> Result<()> {
             Prop::Ball(b) => format!("radius {} m × scale {}, {} kg{}", b.radius, b.scale, b.mass, on(&b.on)),
             Prop::Bucket(b) => format!("radius {} m, height {} m", b.radius, b.height),
         };
-        println!("  {:<8} {:<10} at x {} y {} yaw {}°  {}", p.kind(), p.name(), at.x, at.y, at.yaw_deg, detail);
+        let polar = if at.radius == Param::Fixed(0.0) {
+            String::new()
+        } else {
+            format!(" + {} m at {}°", at.radius, at.angle_deg)
+        };
+        println!("  {:<8} {:<10} at x {} y {}{polar} yaw {}°  {}", p.kind(), p.name(), at.x, at.y, at.yaw_deg, detail);
     }
     println!("zones     {}", s.spawn.len());
     for z in &s.spawn {

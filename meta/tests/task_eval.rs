@@ -1,0 +1,116 @@
+//! Warehouse and toss evaluation over a barely trained meta-controller (the committed walk and
+//! turns as its skills): the phase table, the pick-up map and the strike zone are reproducible
+//! for a seed and written as tables and pictures.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use repertoire_learn::ppo::PpoConfig;
+use repertoire_meta::task_eval::{StartGrid, evaluate_toss, evaluate_warehouse};
+use repertoire_meta::train::{MetaTrainOptions, load, train};
+use repertoire_meta::{MetaSetup, SkillGraph};
+use repertoire_scenes::{ScenarioFile, WorldModel};
+
+fn root() -> &'static Path {
+    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
+}
+
+/// The shipped scenario `name` with only walk and the turns and a `seconds` episode limit.
+fn walking(name: &str, skills: &str, limit: &str, seconds: f64) -> Arc<MetaSetup> {
+    let text = std::fs::read_to_string(root().join(format!("scenes/{name}.ron"))).unwrap();
+    let text = text
+        .replace(skills, r#"skills: ["walk", "turn_left", "turn_right"]"#)
+        .replace(limit, &format!("time_limit_s: {seconds:.1}"));
+    let file = ScenarioFile::parse(&root().join(format!("scenes/{name}-walk.ron")), text).unwrap();
+    let model = Arc::new(WorldModel::build(file).unwrap());
+    let graph = SkillGraph::of(&model.scenario.scenario);
+    Arc::new(MetaSetup::new(model, &root().join("skills/library"), graph).unwrap())
+}
+
+fn tiny_controller(setup: &Arc<MetaSetup>, tag: &str) -> (PathBuf, repertoire_learn::acting::ActingHybrid) {
+    let dir = std::env::temp_dir().join(format!("repertoire-task-eval-{tag}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let opts = MetaTrainOptions {
+        out: dir.join("meta"),
+        run_dir: dir.join("run"),
+        ppo: PpoConfig {
+            num_envs: 2,
+            num_steps: 4,
+            num_iterations: 1,
+            num_minibatches: 2,
+            update_epochs: 1,
+            ..PpoConfig::default()
+        },
+        curriculum: false,
+        command: "test".into(),
+    };
+    let (manifest, _) = train(Arc::clone(setup), &opts).expect("train");
+    assert_eq!(manifest.skills, ["walk", "turn_left", "turn_right"]);
+    let (_, head) = load(&dir.join("meta"), setup).expect("load");
+    (dir, head)
+}
+
+#[test]
+fn the_warehouse_evaluation_counts_phases_and_maps_pick_ups() {
+    let s = walking(
+        "warehouse",
+        r#"skills: ["walk", "turn_left", "turn_right", "lift", "carry", "put_down"]"#,
+        "time_limit_s: 15.0",
+        2.0,
+    );
+    let (dir, head) = tiny_controller(&s, "warehouse");
+    let grid = StartGrid { n: 3, half_m: 1.5, trials: 1 };
+    let a = evaluate_warehouse(&s, &head, 8, Some(grid), 3).expect("evaluate");
+    let b = evaluate_warehouse(&s, &head, 8, Some(grid), 3).expect("evaluate");
+    assert_eq!(a, b, "the same seed gives the same report");
+    assert_eq!(a.trials.len(), 8);
+    let all = a.rows.last().unwrap();
+    assert_eq!((all.start_phase.as_str(), all.episodes), ("all", 8));
+    assert_eq!(a.rows[..a.rows.len() - 1].iter().map(|r| r.episodes).sum::<usize>(), 8);
+    for t in &a.trials {
+        assert!(t.seconds <= 2.0 + 0.5 && f64::from(t.phases) <= t.episode_return + 1e-6, "{t:?}");
+    }
+    let p = a.pickup.as_ref().unwrap();
+    assert_eq!(p.xs, [-1.0, 0.0, 1.0]);
+    assert_eq!(p.successes[1][1], None, "the centre cell is the pedestal");
+    assert_eq!(p.successes.iter().flatten().flatten().count(), 8);
+    for (row, reached) in p.successes.iter().zip(&p.reached) {
+        for (k, r) in row.iter().zip(reached) {
+            assert_eq!(k.is_some(), r.is_some());
+            assert!(k.unwrap_or(0) <= r.unwrap_or(0), "a pick-up passes through GOTO");
+        }
+    }
+    a.write(&dir.join("report")).unwrap();
+    let md = std::fs::read_to_string(dir.join("report/report.md")).unwrap();
+    assert!(md.contains("| all | 8 |") && md.contains("pedestal") && md.contains("/1"), "{md}");
+    assert!(dir.join("report/pickup.png").exists() && dir.join("report/trials.csv").exists());
+    assert!(dir.join("report/goto.svg").exists() && md.contains("GOTO reached"));
+}
+
+#[test]
+fn the_strike_zone_throws_every_cell() {
+    let s = walking(
+        "toss",
+        r#"skills: ["walk", "turn_left", "turn_right", "catch", "put_down"]"#,
+        "time_limit_s: 10.0",
+        3.0,
+    );
+    let (dir, head) = tiny_controller(&s, "toss");
+    let a = evaluate_toss(&s, &head, 3, 2, 2, 5).expect("evaluate");
+    assert_eq!(a, evaluate_toss(&s, &head, 3, 2, 2, 5).unwrap(), "reproducible");
+    assert_eq!(a.v_x, [2.0, 3.0, 4.0]);
+    assert_eq!(a.lateral, [-0.375, 0.375]);
+    assert_eq!(a.throws.len(), 12);
+    for v in &a.v_x {
+        assert_eq!(a.throws.iter().filter(|t| t.v_x == *v).count(), 4);
+    }
+    for t in &a.throws {
+        // Nothing delivers a ball to the bucket without a catch: the return is only shaping.
+        assert!(!t.delivered || t.caught, "{t:?}");
+    }
+    a.write(&dir.join("report")).unwrap();
+    let md = std::fs::read_to_string(dir.join("report/report.md")).unwrap();
+    assert!(md.contains("| 12 |") && md.contains("catch rate by throw"), "{md}");
+    let svg = std::fs::read_to_string(dir.join("report/strike_zone.svg")).unwrap();
+    assert!(svg.contains("strike zone") && svg.contains("n=2"));
+}

@@ -1,0 +1,150 @@
+//! The warehouse and toss scenario files: they parse, compile and draw their props per episode;
+//! malformed task sections are refused naming the file, the line and what is wrong.
+
+use rand::SeedableRng;
+use rand::rngs::StdRng;
+use repertoire_scenes::scenario::{Task, WarehousePhase};
+use repertoire_scenes::{Location, ScenarioFile, SceneError, WorldModel};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+fn shipped(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(name)
+}
+
+fn parse(text: &str) -> Result<ScenarioFile, SceneError> {
+    ScenarioFile::parse(Path::new("task.ron"), text.to_string())
+}
+
+#[test]
+fn the_warehouse_file_holds_the_papers_numbers_and_draws_pedestals_per_episode() {
+    let file = ScenarioFile::load(shipped("warehouse.ron")).expect("warehouse.ron is valid");
+    let Task::Warehouse(w) = &file.scenario.task else { panic!("{:?}", file.scenario.task) };
+    assert_eq!(w.pedestals, ["pedestal_a", "pedestal_b"]);
+    assert_eq!((w.reach_m, w.rest_contacts, w.time_limit_s), (0.65, 4, 15.0));
+    assert_eq!(w.start_phases, WarehousePhase::ALL);
+    let model = Arc::new(WorldModel::build(file).expect("compiles"));
+    let [a, b, crate_] = ["pedestal_a", "pedestal_b", "box"].map(|n| model.prop_id(n).unwrap());
+    let mut world = model.new_world();
+    let mut rng = StdRng::seed_from_u64(5);
+    let mut distances = Vec::new();
+    for _ in 0..20 {
+        world.reset_in_zone("middle", &mut rng).unwrap();
+        let p = world.placements();
+        for ped in [a, b] {
+            let d = p[ped].pos[0].hypot(p[ped].pos[1]);
+            assert!((2.5 - 1e-9..=3.5 + 1e-9).contains(&d), "pedestal {ped} at {d} m from the origin");
+            assert!((0.45..=0.75).contains(&p[ped].top), "height {}", p[ped].top);
+            distances.push(d);
+        }
+        assert!(p[a].pos[0] > 0.0 && p[b].pos[0] < 0.0, "on opposite sides");
+        assert!((0.75..=1.25).contains(&p[crate_].scale) && (2.0..=7.0).contains(&p[crate_].mass));
+        // The box starts centred on pedestal_a, its bottom on the top.
+        let c = world.body_position(model.props[crate_].body);
+        assert!((c[0] - p[a].pos[0]).abs() < 1e-9 && (c[1] - p[a].pos[1]).abs() < 1e-9);
+        assert!((c[2] - (p[a].top + 0.15 * p[crate_].scale)).abs() < 1e-9);
+    }
+    distances.sort_by(f64::total_cmp);
+    assert!(distances[distances.len() - 1] - distances[0] > 0.5, "the distance varies: {distances:?}");
+}
+
+#[test]
+fn the_toss_file_holds_the_papers_throw() {
+    let file = ScenarioFile::load(shipped("toss.ron")).expect("toss.ron is valid");
+    let Task::Toss(t) = &file.scenario.task else { panic!("{:?}", file.scenario.task) };
+    assert_eq!((t.throw.v_x.min(), t.throw.v_x.max()), (1.5, 4.5));
+    assert_eq!((t.throw.lateral.min(), t.throw.lateral.max()), (-0.75, 0.75));
+    assert_eq!((t.throw.d_z.min(), t.throw.d_z.max()), (0.1, 0.4));
+    assert_eq!(t.ball, "ball");
+    let model = Arc::new(WorldModel::build(file).expect("compiles"));
+    let ball = model.prop_id("ball").unwrap();
+    let mut world = model.new_world();
+    let mut rng = StdRng::seed_from_u64(2);
+    world.reset_in_zone("middle", &mut rng).unwrap();
+    let p = world.placements()[ball];
+    assert!((0.95..=1.5).contains(&p.scale) && (2.0..=4.0).contains(&p.mass), "{p:?}");
+}
+
+#[test]
+fn malformed_task_sections_are_located_and_explained() {
+    const PROPS: &str = r#"props: [
+        Pedestal(name: "a", at: (x: 3.0, y: 0.0)),
+        Pedestal(name: "b", at: (x: -3.0, y: 0.0)),
+        Box(name: "crate", on: "a"),
+        Ball(name: "ball"),
+        Bucket(name: "bucket"),
+        Chair(name: "chair"),
+    ],"#;
+    let cases = [
+        // (task, expected message, expected line)
+        (r#"Warehouse(box: "crate", pedestals: ["a", "b"], reach: 0.65)"#, "unknown field `reach`", 11),
+        (r#"Warehouse(box: "crate", pedestals: ["a", "table"])"#, "`table`, which is not in `props`", 11),
+        (r#"Warehouse(box: "crate", pedestals: ["a", "chair"])"#, "`chair` is a chair, not a pedestal", 9),
+        (r#"Warehouse(box: "ball", pedestals: ["a", "b"])"#, "`ball` is a ball, not a box", 7),
+        (r#"Warehouse(box: "crate", pedestals: ["a"])"#, "at least two pedestals", 11),
+        (r#"Warehouse(box: "crate", pedestals: ["b", "chair"])"#, "`chair` is a chair", 9),
+        (r#"Warehouse(box: "crate", pedestals: ["a", "b"], reach_m: -1.0)"#, "reach_m must be positive", 11),
+        (r#"Warehouse(box: "crate", pedestals: ["a", "b"], start_phases: [])"#, "no start phase", 11),
+        (r#"Warehouse(box: "crate", pedestals: ["a", "b"], start_phases: [Walk])"#, "Walk", 11),
+        (r#"Warehouse(box: "crate", pedestals: ["a", "b"], rest_contacts: 0)"#, "rest_contacts", 11),
+        (r#"Warehouse(box: "crate", pedestals: ["a", "b"], reach_m: "far")"#, "", 11),
+        (r#"Toss(ball: "crate", bucket: "bucket")"#, "`crate` is a box, not a ball", 6),
+        (r#"Toss(ball: "ball", bucket: "a")"#, "`a` is a pedestal, not a bucket", 4),
+        (r#"Toss(ball: "ball", bucket: "bucket", throw: (v_x: (0.0, 2.0)))"#, "v_x must be positive", 11),
+        (r#"Toss(ball: "ball", bucket: "bucket", throw: (v_x: (3.0, 2.0)))"#, "low end above its high end", 11),
+        (r#"Toss(ball: "ball", bucket: "bucket", throw: (speed: 2.0))"#, "unknown field `speed`", 11),
+        (r#"Toss(ball: "ball", bucket: "bucket", catch_at: (forward: 0.4, height: 0.0))"#, "catch_at", 11),
+        (r#"Toss(ball: "ball", bucket: "bucket", time_limit_s: 0.0)"#, "time_limit_s", 11),
+    ];
+    for (task, expect, line) in cases {
+        let text = format!("Scenario(\n    name: \"t\",\n    {PROPS}\n    task: {task},\n)");
+        let err = parse(&text).err().unwrap_or_else(|| panic!("accepted: {task}"));
+        let msg = err.to_string();
+        assert!(msg.starts_with("task.ron:"), "names the file: {msg}");
+        assert!(msg.contains(expect), "{task}\n→ {msg}");
+        let loc = match &err {
+            SceneError::Ron { loc, .. } => Some(*loc),
+            SceneError::Invalid { loc, .. } => *loc,
+            other => panic!("{other:?}"),
+        };
+        let Some(Location { line: got, .. }) = loc else { panic!("no location: {msg}") };
+        assert_eq!(got, line, "{task}\n→ {msg}");
+    }
+    // A box that does not start on a warehouse pedestal.
+    let text = r#"Scenario(name: "t", props: [Pedestal(name: "a"), Pedestal(name: "b"), Box(name: "crate")],
+        task: Warehouse(box: "crate", pedestals: ["a", "b"]))"#;
+    assert!(parse(text).unwrap_err().to_string().contains("must start `on` one of the warehouse pedestals"));
+    // A polar placement with a bad range.
+    let text = r#"Scenario(name: "t", props: [Pedestal(name: "a", at: (radius: (3.5, 2.5)))])"#;
+    assert!(parse(text).unwrap_err().to_string().contains("low end above its high end"));
+}
+
+#[test]
+fn a_ball_of_any_drawn_mass_falls_at_standard_gravity() {
+    // Masses drawn per episode (2–4 kg around a nominal 3 kg) change the ball's inertia, not
+    // how fast it falls; before MuJoCo's derived constants were recomputed it fell at g·m/3.
+    let model = Arc::new(WorldModel::build(ScenarioFile::load(shipped("toss.ron")).unwrap()).unwrap());
+    let ball = model.prop_id("ball").unwrap();
+    let mut world = model.new_world();
+    let mut rng = StdRng::seed_from_u64(12);
+    let mut masses = Vec::new();
+    for _ in 0..5 {
+        world.reset_in_zone("middle", &mut rng).unwrap();
+        masses.push(world.placements()[ball].mass);
+        world.set_free_prop(ball, [3.0, 2.0, 3.0], [1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 2.0], [0.0, 0.0, 3.0]).unwrap();
+        let hold: Vec<f64> = {
+            let mut a = vec![0.0; model.index.dof()];
+            world.joint_angles(&mut a);
+            a
+        };
+        let ticks = 18;
+        for _ in 0..ticks {
+            world.step(&hold).unwrap();
+        }
+        let t = ticks as f64 * model.control_dt();
+        let z = world.body_position(model.props[ball].body)[2];
+        let expected = 3.0 + 2.0 * t - 0.5 * 9.81 * t * t;
+        assert!((z - expected).abs() < 0.005, "mass {}: z {z} vs {expected}", masses.last().unwrap());
+    }
+    assert!(masses.iter().any(|&m| (m - 3.0).abs() > 0.3), "masses away from the nominal were drawn: {masses:?}");
+}

@@ -1,0 +1,97 @@
+//! The warehouse and toss scenarios through the `repertoire` binary: `scene check` accepts both,
+//! and the meta-controller commands name the skills a library lacks instead of failing later.
+
+mod common;
+
+use common::{ok, repertoire, temp_dir};
+
+#[test]
+fn scene_check_accepts_the_warehouse_and_the_toss() {
+    let out = ok(&repertoire(&["scene", "check", "scenes/warehouse.ron"]));
+    assert!(out.contains("pedestal_a") && out.contains("2.5..3.5 m at -45..45°") && out.ends_with("ok\n"), "{out}");
+    let out = ok(&repertoire(&["scene", "check", "scenes/toss.ron"]));
+    assert!(out.contains("Toss(") && out.contains("v_x: Uniform(1.5, 4.5)") && out.ends_with("ok\n"), "{out}");
+}
+
+#[test]
+fn meta_commands_name_the_missing_warehouse_and_toss_skills() {
+    // A library holding only walk, copied from the committed one (which may gain the others).
+    let lib = temp_dir("walk-only-library");
+    std::fs::create_dir_all(lib.join("walk")).unwrap();
+    for f in std::fs::read_dir("skills/library/walk").unwrap() {
+        let f = f.unwrap().path();
+        if f.is_file() {
+            std::fs::copy(&f, lib.join("walk").join(f.file_name().unwrap())).unwrap();
+        }
+    }
+    let lib = lib.display().to_string();
+    for (file, missing) in [
+        ("scenes/warehouse.ron", "turn_left, turn_right, lift, carry, put_down"),
+        ("scenes/toss.ron", "turn_left, turn_right, catch, put_down"),
+    ] {
+        for cmd in ["train", "eval"] {
+            let out = repertoire(&["meta", cmd, file, "--library", &lib]);
+            assert!(!out.status.success(), "{cmd} {file} succeeded");
+            let err = String::from_utf8_lossy(&out.stderr);
+            assert!(err.contains(file) && err.contains(missing) && err.contains("--skills"), "{cmd} {file}: {err}");
+        }
+    }
+}
+
+#[test]
+fn report_gathers_warehouse_and_toss_evaluations() {
+    use repertoire_meta::task_eval::{PhaseRow, PickupMap, StartGrid, TossReport, TossTrial, WarehouseReport};
+    let dir = temp_dir("task-reports");
+    let row = |p: &str| PhaseRow {
+        start_phase: p.into(),
+        episodes: 2,
+        phases_mean: 0.5,
+        phases_sd: 0.7,
+        fall_rate: 0.5,
+        drop_rate: 0.0,
+    };
+    let warehouse = WarehouseReport {
+        rows: vec![row("GOTO"), row("all")],
+        trials: Vec::new(),
+        pickup: Some(PickupMap {
+            grid: StartGrid { n: 2, half_m: 1.0, trials: 2 },
+            xs: vec![-0.5, 0.5],
+            ys: vec![-0.5, 0.5],
+            successes: vec![vec![Some(0), Some(1)], vec![None, Some(2)]],
+            reached: vec![vec![Some(1), Some(2)], vec![None, Some(2)]],
+        }),
+    };
+    warehouse.write(&dir.join("warehouse")).unwrap();
+    let throw = |v_x: f64, caught: bool| TossTrial {
+        index: 0,
+        v_x,
+        lateral: 0.0,
+        caught,
+        delivered: false,
+        dropped: !caught,
+        fell: false,
+        episode_return: 0.0,
+    };
+    let toss = TossReport {
+        v_x: vec![2.0, 4.0],
+        lateral: vec![0.0],
+        trials: 1,
+        throws: vec![throw(2.0, true), throw(4.0, false)],
+    };
+    toss.write(&dir.join("toss")).unwrap();
+    let w = dir.join("warehouse");
+    ok(&repertoire(&["report", w.to_str().unwrap()]));
+    let page = std::fs::read_to_string(w.join("report/index.md")).unwrap();
+    assert!(
+        page.contains("Warehouse evaluation") && page.contains("(pickup.png)") && page.contains("(goto.png)"),
+        "{page}"
+    );
+    assert!(page.contains("| GOTO | 2 | 0.50 ± 0.70 |"), "{page}");
+    let t = dir.join("toss");
+    ok(&repertoire(&["report", t.to_str().unwrap()]));
+    let page = std::fs::read_to_string(t.join("report/index.md")).unwrap();
+    assert!(
+        page.contains("Toss evaluation") && page.contains("(strike_zone.png)") && page.contains("| 2 | 50.0% |"),
+        "{page}"
+    );
+}
