@@ -2,7 +2,7 @@
 
 use anyhow::Result;
 use clap::Subcommand;
-use repertoire_scenes::scenario::{Facing, Prop};
+use repertoire_scenes::scenario::{Facing, Prop, Task};
 use repertoire_scenes::{Param, WorldModel};
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -109,14 +109,15 @@ fn check(file: Option<PathBuf>) -> Result<()> {
             facing
         );
     }
-    println!("task      {:?}", s.task);
+    println!("task      {}", describe_task(&s.task));
     println!("skills    {}", if s.skills.is_empty() { "none".into() } else { s.skills.join(", ") });
     match &s.curriculum {
         Some(c) => println!(
-            "curriculum {} (advance at {:.0} % over {} episodes)",
+            "curriculum {} (advance at {:.0} % over {} episodes{})",
             c.zones.join(" → "),
             c.advance_at * 100.0,
-            c.window
+            c.window,
+            if c.keep_passed { ", passed zones stay open" } else { ", one zone at a time" }
         ),
         None => println!("curriculum none"),
     }
@@ -126,4 +127,37 @@ fn check(file: Option<PathBuf>) -> Result<()> {
 
 fn on(base: &Option<String>) -> String {
     base.as_ref().map(|b| format!(", on {b}")).unwrap_or_default()
+}
+
+/// One line for people: what the task asks and how it is judged.
+fn describe_task(task: &Task) -> String {
+    match task {
+        Task::Sit { seat, hold_s, time_limit_s } => {
+            format!("Sit on `{seat}`: pelvis on the seat for {hold_s} s within {time_limit_s} s")
+        }
+        Task::Warehouse(w) => format!(
+            "Warehouse: move `{}` between {}; reach {} m, {} resting contacts, episodes start in {}; {} s",
+            w.box_,
+            w.pedestals.iter().map(|p| format!("`{p}`")).collect::<Vec<_>>().join(", "),
+            w.reach_m,
+            w.rest_contacts,
+            w.start_phases.iter().map(|p| format!("{p:?}")).collect::<Vec<_>>().join(", "),
+            w.time_limit_s
+        ),
+        Task::Toss(t) => format!(
+            "Toss: catch `{}` (thrown from {} m at v_x {} m/s, lateral {} m/s, rising {} m, spin ±{} rad/s, \
+             aimed {} m ahead at {} m) and put it in `{}`; {} s",
+            t.ball,
+            t.throw.distance_m,
+            t.throw.v_x,
+            t.throw.lateral,
+            t.throw.d_z,
+            t.throw.spin,
+            t.catch_at.forward,
+            t.catch_at.height,
+            t.bucket,
+            t.time_limit_s
+        ),
+        Task::Free { time_limit_s } => format!("Free: no task, {time_limit_s} s episodes"),
+    }
 }
