@@ -9,8 +9,9 @@ use common::{ok, repertoire, temp_dir};
 fn scene_check_accepts_the_warehouse_and_the_toss() {
     let out = ok(&repertoire(&["scene", "check", "scenes/warehouse.ron"]));
     assert!(out.contains("pedestal_a") && out.contains("2.5..3.5 m at -45..45°") && out.ends_with("ok\n"), "{out}");
+    assert!(out.contains("Warehouse: move `box`") && out.contains("reach 0.65 m, 4 resting contacts"), "{out}");
     let out = ok(&repertoire(&["scene", "check", "scenes/toss.ron"]));
-    assert!(out.contains("Toss(") && out.contains("v_x: Uniform(1.5, 4.5)") && out.ends_with("ok\n"), "{out}");
+    assert!(out.contains("Toss: catch `ball`") && out.contains("v_x 1.5..4.5 m/s") && out.ends_with("ok\n"), "{out}");
 }
 
 #[test]
