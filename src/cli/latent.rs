@@ -1,0 +1,261 @@
+//! `repertoire latent collect | train | eval`: the NPMP latent low level: expert rollouts into a
+//! dataset, the encoder/decoder trained on it, one-shot imitation against the experts.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result, bail};
+use clap::{Subcommand, ValueEnum};
+use repertoire_latent::dataset::{CollectOptions, Dataset, collect};
+use repertoire_latent::eval::{csv, markdown, one_shot};
+use repertoire_latent::model::{LatentConfig, LatentPolicy, Weighting};
+use repertoire_latent::train::{TrainOptions, train};
+use repertoire_skill::train::default_run_dir;
+
+const DEFAULT_LIBRARY: &str = "skills/library";
+const DEFAULT_SPECS: &str = "skills/skill/specs";
+const DEFAULT_SKILLS: [&str; 4] = ["walk", "turn_left", "turn_right", "sit"];
+
+/// Loss weighting on the command line.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum WeightingArg {
+    /// Behaviour cloning (every transition the same).
+    Bc,
+    /// Every skill's transitions together the same.
+    Clip,
+    /// Reward-weighted regression on the imitation return-to-go.
+    Rwr,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum LatentCommand {
+    /// Run library skills with action noise from random clip frames and store their
+    /// transitions (proprioception, the next k reference frames, mean and noisy actions,
+    /// imitation reward) as a dataset: dataset.safetensors + dataset.ron.
+    Collect {
+        /// Skills to run (their specs in --specs, their policies in --library).
+        #[arg(long, value_delimiter = ',', default_values_t = DEFAULT_SKILLS.map(String::from))]
+        skills: Vec<String>,
+        /// Folder of the skill specs.
+        #[arg(long, default_value = DEFAULT_SPECS)]
+        specs: PathBuf,
+        /// Skill library folder.
+        #[arg(long, default_value = DEFAULT_LIBRARY)]
+        library: PathBuf,
+        /// Transitions per skill.
+        #[arg(long, default_value_t = 25_000)]
+        steps: u64,
+        /// Reference frames ahead in the encoder's input.
+        #[arg(long, default_value_t = 5)]
+        k: usize,
+        /// Standard deviation of the action noise.
+        #[arg(long, default_value_t = 0.1)]
+        noise: f32,
+        /// Environments stepped together.
+        #[arg(long, default_value_t = 16)]
+        batch: usize,
+        /// Seed.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Output folder (default: runs/latent-data-<time>-s<seed>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// Train the encoder and decoder on a dataset into a model folder (latent.ron +
+    /// latent.safetensors, metrics.csv).
+    Train {
+        /// The dataset folder (from `latent collect`).
+        data: PathBuf,
+        /// A LatentConfig in RON (defaults: 60-D latent, α 0.95, β 0.01, 2×256 MLPs).
+        #[arg(long)]
+        config: Option<PathBuf>,
+        /// Override the latent width.
+        #[arg(long)]
+        latent_dim: Option<usize>,
+        /// Override the KL weight β.
+        #[arg(long)]
+        beta: Option<f32>,
+        /// Loss weighting.
+        #[arg(long, value_enum)]
+        weighting: Option<WeightingArg>,
+        /// RWR temperature (on the imitation return-to-go).
+        #[arg(long, default_value_t = 1.0)]
+        rwr_temperature: f32,
+        /// Most Adam updates.
+        #[arg(long, default_value_t = 1_000_000)]
+        updates: usize,
+        /// Most minutes of training.
+        #[arg(long, default_value_t = 20.0)]
+        minutes: f64,
+        /// Seed (default: the config's).
+        #[arg(long)]
+        seed: Option<u64>,
+        /// Output folder (default: runs/latent-<time>-s<seed>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// One-shot imitation: track each skill's clip from random frames with the expert and with
+    /// the latent model; normalised episode length and return side by side (one_shot.md/.csv).
+    Eval {
+        /// The model folder (from `latent train`).
+        model: PathBuf,
+        /// Skills whose clips are tracked.
+        #[arg(long, value_delimiter = ',', default_values_t = DEFAULT_SKILLS.map(String::from))]
+        skills: Vec<String>,
+        /// Folder of the skill specs.
+        #[arg(long, default_value = DEFAULT_SPECS)]
+        specs: PathBuf,
+        /// Skill library folder.
+        #[arg(long, default_value = DEFAULT_LIBRARY)]
+        library: PathBuf,
+        /// Episodes per skill and controller.
+        #[arg(long, default_value_t = 100)]
+        episodes: usize,
+        /// Environments stepped together.
+        #[arg(long, default_value_t = 16)]
+        batch: usize,
+        /// Seed of the start states (the same for both controllers).
+        #[arg(long, default_value_t = 12345)]
+        seed: u64,
+        /// Output folder (default: MODEL/eval).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+}
+
+fn spec_paths(specs: &Path, skills: &[String]) -> Result<Vec<PathBuf>> {
+    if skills.is_empty() {
+        bail!("no skill named");
+    }
+    skills
+        .iter()
+        .map(|s| {
+            let p = specs.join(format!("{s}.ron"));
+            if p.exists() { Ok(p) } else { bail!("no spec for skill `{s}`: {} does not exist", p.display()) }
+        })
+        .collect()
+}
+
+pub fn run(cmd: LatentCommand) -> Result<()> {
+    let command = std::env::args().collect::<Vec<_>>().join(" ");
+    match cmd {
+        LatentCommand::Collect { skills, specs, library, steps, k, noise, batch, seed, out } => {
+            let out = out.unwrap_or_else(|| default_run_dir(Path::new("runs"), "latent-data", seed));
+            let opts = CollectOptions {
+                library,
+                specs: spec_paths(&specs, &skills)?,
+                steps_per_skill: steps,
+                k,
+                noise_std: noise,
+                batch,
+                seed,
+                progress: true,
+                command,
+            };
+            let begin = std::time::Instant::now();
+            let mut data = collect(&opts).context("collecting expert rollouts")?;
+            let bytes = data.save(&out)?;
+            let m = &data.manifest;
+            println!("| skill | transitions | episodes | falls |");
+            println!("|---|---:|---:|---:|");
+            for s in &m.skills {
+                println!("| {} | {} | {} | {} |", s.name, s.steps, s.episodes, s.falls);
+            }
+            println!(
+                "{} transitions in {:.1} s; {} written ({:.1} MB, {:.1} MB per 10^5 steps; {} values per step)",
+                m.steps,
+                begin.elapsed().as_secs_f64(),
+                out.display(),
+                bytes as f64 / 1e6,
+                bytes as f64 / 1e6 * 1e5 / m.steps.max(1) as f64,
+                m.proprio.size + m.reference_size + 2 * m.act_dim + 1
+            );
+            Ok(())
+        }
+        LatentCommand::Train {
+            data,
+            config,
+            latent_dim,
+            beta,
+            weighting,
+            rwr_temperature,
+            updates,
+            minutes,
+            seed,
+            out,
+        } => {
+            let mut cfg = match &config {
+                Some(p) => {
+                    let text = std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?;
+                    ron::from_str::<LatentConfig>(&text).map_err(|e| {
+                        anyhow::anyhow!("{}:{}:{}: {}", p.display(), e.span.start.line, e.span.start.col, e.code)
+                    })?
+                }
+                None => LatentConfig::default(),
+            };
+            if let Some(z) = latent_dim {
+                cfg.latent_dim = z;
+            }
+            if let Some(b) = beta {
+                cfg.beta = b;
+            }
+            if let Some(s) = seed {
+                cfg.seed = s;
+            }
+            match weighting {
+                Some(WeightingArg::Bc) => cfg.weighting = Weighting::Bc,
+                Some(WeightingArg::Clip) => cfg.weighting = Weighting::ClipBalanced,
+                Some(WeightingArg::Rwr) => {
+                    cfg.weighting = Weighting::Rwr { temperature: rwr_temperature, gamma: 0.95, max_weight: 20.0 }
+                }
+                None => {}
+            }
+            let dataset = Dataset::load(&data)?;
+            let out = out.unwrap_or_else(|| default_run_dir(Path::new("runs"), "latent", cfg.seed));
+            std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+            tracing::info!(transitions = dataset.len(), out = %out.display(), "training the latent model");
+            let opts = TrainOptions {
+                max_updates: updates,
+                max_seconds: minutes * 60.0,
+                log_every: 50,
+                progress: true,
+                metrics_csv: Some(out.join("metrics.csv")),
+                command,
+            };
+            let (mut policy, _) = train(&dataset, &data, cfg, &opts)?;
+            let path = policy.save(&out)?;
+            let t = &policy.manifest.training;
+            println!("| updates | rows | minutes | loss | −log π | KL | action MSE |");
+            println!("|---:|---:|---:|---:|---:|---:|---:|");
+            println!(
+                "| {} | {} | {:.1} | {:.2} → {:.2} | {:.2} → {:.2} | {:.2} → {:.2} | {:.4} → {:.4} |",
+                t.updates,
+                t.rows,
+                t.seconds / 60.0,
+                t.first.loss,
+                t.last.loss,
+                t.first.nll,
+                t.last.nll,
+                t.first.kl,
+                t.last.kl,
+                t.first.action_mse,
+                t.last.action_mse
+            );
+            println!("model written to {}", path.display());
+            Ok(())
+        }
+        LatentCommand::Eval { model, skills, specs, library, episodes, batch, seed, out } => {
+            let mut policy = LatentPolicy::load(&model)?;
+            let rows = one_shot(&mut policy, &model, &library, &spec_paths(&specs, &skills)?, episodes, batch, seed)?;
+            let dir =
+                if model.is_dir() { model.clone() } else { model.parent().unwrap_or(Path::new(".")).to_path_buf() };
+            let out = out.unwrap_or_else(|| dir.join("eval"));
+            std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+            let md = markdown(&rows);
+            repertoire_latent::error::write_atomic(&out.join("one_shot.md"), md.as_bytes())?;
+            repertoire_latent::error::write_atomic(&out.join("one_shot.csv"), csv(&rows).as_bytes())?;
+            print!("{md}");
+            println!("written to {}", out.join("one_shot.md").display());
+            Ok(())
+        }
+    }
+}
