@@ -145,7 +145,7 @@ pub fn rollout(
     let mut max_len = vec![0u32; batch];
     let mut returns = vec![0.0f64; batch];
     let mut active = vec![false; batch];
-    let mut noise = EnvRng::seed_from_u64(opts.seed ^ 0x6e6f_6973_65);
+    let mut noise = EnvRng::seed_from_u64(opts.seed ^ 0x006e_6f69_7365);
     let im = settings.imitation;
     let frames = settings.reference.frames() as u32;
     let looping = settings.reference.looping;

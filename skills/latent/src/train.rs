@@ -235,6 +235,9 @@ impl Trainer {
     }
 }
 
+/// Logged training figures: `(update, seconds, mean figures since the last log)`.
+pub type History = Vec<(usize, f64, LossStats)>;
+
 /// Limits and outputs of a training run.
 #[derive(Debug, Clone)]
 pub struct TrainOptions {
@@ -259,7 +262,7 @@ pub fn train(
     data_path: &Path,
     cfg: LatentConfig,
     opts: &TrainOptions,
-) -> Result<(LatentPolicy, Vec<(usize, f64, LossStats)>)> {
+) -> Result<(LatentPolicy, History)> {
     let mut trainer = Trainer::new(data, cfg)?;
     let begin = Instant::now();
     let bar = if opts.progress { ProgressBar::new(opts.max_updates as u64) } else { ProgressBar::hidden() };
