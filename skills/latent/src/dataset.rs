@@ -388,9 +388,11 @@ impl Dataset {
         Ok(bytes.len() as u64)
     }
 
-    /// Reads the manifest of the dataset in `dir` (or at a `dataset.ron` path).
+    /// Reads the manifest of the dataset in folder `path` (or at `path` itself when it names a
+    /// `.ron` file).
     pub fn read_manifest(path: &Path) -> Result<(PathBuf, DatasetManifest)> {
-        let manifest_path = if path.is_dir() { path.join(MANIFEST_FILE) } else { path.to_path_buf() };
+        let is_ron = path.extension().is_some_and(|e| e == "ron");
+        let manifest_path = if path.is_dir() || !is_ron { path.join(MANIFEST_FILE) } else { path.to_path_buf() };
         let text = std::fs::read_to_string(&manifest_path)
             .map_err(|e| LatentError::io(&manifest_path, "cannot read the dataset manifest", e))?;
         let manifest: DatasetManifest = ron::from_str(&text).map_err(|e| LatentError::ron(&manifest_path, e))?;

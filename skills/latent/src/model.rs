@@ -677,7 +677,8 @@ impl LatentPolicy {
     /// Loads a model from `dir` (or its `latent.ron`): checks the weights' checksum and
     /// shapes against the manifest, and refuses a decoder that reads a prop feature.
     pub fn load(path: &Path) -> Result<Self> {
-        let manifest_path = if path.is_dir() { path.join("latent.ron") } else { path.to_path_buf() };
+        let is_ron = path.extension().is_some_and(|e| e == "ron");
+        let manifest_path = if path.is_dir() || !is_ron { path.join("latent.ron") } else { path.to_path_buf() };
         let dir = manifest_path.parent().unwrap_or(Path::new("."));
         let text = std::fs::read_to_string(&manifest_path)
             .map_err(|e| LatentError::io(&manifest_path, "cannot read the latent manifest", e))?;
