@@ -120,6 +120,36 @@ pub enum LatentCommand {
         #[arg(long)]
         out: Option<PathBuf>,
     },
+    /// Train a high-level policy whose action is the latent z (bounded to ±2) on a go-to-target
+    /// task through the frozen decoder (PPO), and evaluate it beside a constant z = 0.
+    Goto {
+        /// The model folder (from `latent train`).
+        model: PathBuf,
+        /// The skill spec whose clip frames episodes start from (and whose scene is used).
+        #[arg(long, default_value = "skills/skill/specs/walk.ron")]
+        start: PathBuf,
+        /// Skill library folder (for the spec's pools, if any).
+        #[arg(long, default_value = DEFAULT_LIBRARY)]
+        library: PathBuf,
+        /// PPO iterations.
+        #[arg(long, default_value_t = 150)]
+        iterations: usize,
+        /// Parallel environments.
+        #[arg(long, default_value_t = 16)]
+        envs: usize,
+        /// Steps per environment per iteration.
+        #[arg(long, default_value_t = 128)]
+        steps: usize,
+        /// Seed of training.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Evaluation trials (before and after training, on the same starts).
+        #[arg(long, default_value_t = 100)]
+        trials: usize,
+        /// Output folder (default: MODEL/goto).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
 }
 
 fn spec_paths(specs: &Path, skills: &[String]) -> Result<Vec<PathBuf>> {
@@ -257,5 +287,71 @@ pub fn run(cmd: LatentCommand) -> Result<()> {
             println!("written to {}", out.join("one_shot.md").display());
             Ok(())
         }
+        LatentCommand::Goto { model, start, library, iterations, envs, steps, seed, trials, out } => {
+            goto_cmd(&model, &start, &library, iterations, envs, steps, seed, trials, out)
+        }
     }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn goto_cmd(
+    model_path: &Path,
+    start: &Path,
+    library: &Path,
+    iterations: usize,
+    envs: usize,
+    steps: usize,
+    seed: u64,
+    trials: usize,
+    out: Option<PathBuf>,
+) -> Result<()> {
+    use repertoire_latent::high::{GoToOptions, GoToSettings, train_goto};
+    use std::sync::Arc;
+
+    let policy = LatentPolicy::load(model_path)?;
+    let setup = repertoire_skill::SkillSetup::new(repertoire_skill::SpecFile::load(start)?, library)?;
+    let settings = Arc::new(GoToSettings {
+        start: Arc::clone(&setup.settings),
+        distance_m: (2.0, 4.0),
+        azimuth_deg: 90.0,
+        reach_m: 0.5,
+        reach_bonus: 10.0,
+        min_height: 0.5,
+    });
+    let dir = if model_path.is_dir() {
+        model_path.to_path_buf()
+    } else {
+        model_path.parent().unwrap_or(Path::new(".")).to_path_buf()
+    };
+    let out = out.unwrap_or_else(|| dir.join("goto"));
+    let opts = GoToOptions { iterations, envs, steps, seed, trials, eval_seed: 4242, episode_s: 10.0, progress: true };
+    let outcome = train_goto(&setup.model, &settings, &policy, model_path, &opts, &out.join("run"))?;
+    outcome.policy.save(&out.join("high_level.safetensors"))?;
+    let (zero, trained, minutes) = (outcome.zero, outcome.trained, outcome.minutes);
+    let mut md = format!(
+        "Go to a target 2–4 m away within ±90° of the start heading (reached within 0.5 m, 10 s limit), \
+         starting mid-stride from {} frames, through the frozen decoder of {}; {} PPO iterations ({} steps, {:.1} min).\n\n",
+        setup.spec.spec.name,
+        model_path.display(),
+        iterations,
+        outcome.samples,
+        minutes
+    );
+    md.push_str(
+        "| high level | trials | reached | falls | min distance (m) | episode (s) |\n|---|---:|---:|---:|---:|---:|\n",
+    );
+    for (name, r) in [("constant z = 0", zero), ("PPO over z", trained)] {
+        md.push_str(&format!(
+            "| {name} | {} | {:.1} % | {:.1} % | {:.2} | {:.1} |\n",
+            r.trials,
+            100.0 * r.success_rate,
+            100.0 * r.fall_rate,
+            r.mean_min_distance,
+            r.mean_seconds
+        ));
+    }
+    repertoire_latent::error::write_atomic(&out.join("goto.md"), md.as_bytes())?;
+    print!("{md}");
+    println!("written to {}", out.join("goto.md").display());
+    Ok(())
 }

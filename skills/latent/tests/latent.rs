@@ -304,3 +304,74 @@ fn training_lowers_the_loss_and_the_model_reloads_identically() {
         assert!((0.0..=1.0 + 1e-9).contains(&v), "{r:?}");
     }
 }
+
+#[test]
+fn a_high_level_over_z_drives_the_frozen_decoder_to_a_target() {
+    use repertoire_latent::high::{GoToOptions, GoToSettings, Z_BOUND, goto_envs, train_goto};
+    use repertoire_learn::env::{Env, EnvRng};
+    use std::sync::Arc;
+
+    let (dir, data) = tiny_dataset();
+    let opts = TrainOptions {
+        max_updates: 30,
+        max_seconds: 60.0,
+        log_every: 10,
+        progress: false,
+        metrics_csv: None,
+        command: "test".into(),
+    };
+    let (policy, _) = train(data, dir, tiny_config(), &opts).expect("trains");
+    let spec = SpecFile::load(&specs(&["walk"])[0]).expect("spec");
+    let setup = SkillSetup::new(spec, &root().join("skills/library")).expect("setup");
+    let settings = Arc::new(GoToSettings {
+        start: Arc::clone(&setup.settings),
+        distance_m: (2.0, 4.0),
+        azimuth_deg: 90.0,
+        reach_m: 0.5,
+        reach_bonus: 10.0,
+        min_height: 0.5,
+    });
+    let path = PathBuf::from("tiny-model/latent.ron"); // named in errors only
+    let mut envs = goto_envs(&setup.model, &settings, &policy, &path, 2.0, 2).expect("envs");
+    let env = &mut envs[0];
+    assert_eq!(env.act_dim(), 8, "the action is z");
+    let (lo, hi) = env.action_bounds();
+    assert!(lo.iter().all(|&v| v == -Z_BOUND) && hi.iter().all(|&v| v == Z_BOUND));
+    assert_eq!(env.obs_dim(), data.proprio_dim() + 3, "proprioception and the target");
+    let mut obs = vec![0.0f32; env.obs_dim()];
+    let mut rng = <EnvRng as rand::SeedableRng>::seed_from_u64(5);
+    env.reset(&mut rng, &mut obs);
+    let dist0 = obs[obs.len() - 1];
+    assert!((2.0..=4.0 + 1e-3).contains(&dist0), "target {dist0} m away");
+    // Different latents move the body differently: the decoder is in the loop.
+    let snap = env.snapshot();
+    let mut a = obs.clone();
+    let mut b = obs.clone();
+    for _ in 0..10 {
+        env.step(&[0.0; 8], &mut a);
+    }
+    env.restore(&snap).expect("restores");
+    for _ in 0..10 {
+        env.step(&[1.5; 8], &mut b);
+    }
+    assert!(a.iter().zip(&b).map(|(x, y)| (x - y).abs()).sum::<f32>() > 1e-2, "z changes nothing");
+
+    let out = temp("goto");
+    let o = GoToOptions {
+        iterations: 1,
+        envs: 2,
+        steps: 16,
+        seed: 1,
+        trials: 3,
+        eval_seed: 9,
+        episode_s: 1.0,
+        progress: false,
+    };
+    let got = train_goto(&setup.model, &settings, &policy, &path, &o, &out).expect("trains the high level");
+    assert_eq!(got.samples, 32);
+    for r in [got.zero, got.trained] {
+        assert_eq!(r.trials, 3);
+        assert!(r.mean_min_distance > 0.0 && r.mean_min_distance < 4.1 && r.mean_seconds <= 1.0 + 1e-9, "{r:?}");
+    }
+    assert!(out.join("metrics.csv").exists());
+}
