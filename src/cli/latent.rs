@@ -146,6 +146,9 @@ pub enum LatentCommand {
         /// Evaluation trials (before and after training, on the same starts).
         #[arg(long, default_value_t = 100)]
         trials: usize,
+        /// Initial log standard deviation of the high level's Gaussian over z.
+        #[arg(long, default_value_t = -1.0, allow_hyphen_values = true)]
+        init_log_std: f32,
         /// Output folder (default: MODEL/goto).
         #[arg(long)]
         out: Option<PathBuf>,
@@ -287,8 +290,8 @@ pub fn run(cmd: LatentCommand) -> Result<()> {
             println!("written to {}", out.join("one_shot.md").display());
             Ok(())
         }
-        LatentCommand::Goto { model, start, library, iterations, envs, steps, seed, trials, out } => {
-            goto_cmd(&model, &start, &library, iterations, envs, steps, seed, trials, out)
+        LatentCommand::Goto { model, start, library, iterations, envs, steps, seed, trials, init_log_std, out } => {
+            goto_cmd(&model, &start, &library, iterations, envs, steps, seed, trials, init_log_std, out)
         }
     }
 }
@@ -303,6 +306,7 @@ fn goto_cmd(
     steps: usize,
     seed: u64,
     trials: usize,
+    init_log_std: f32,
     out: Option<PathBuf>,
 ) -> Result<()> {
     use repertoire_latent::high::{GoToOptions, GoToSettings, train_goto};
@@ -324,13 +328,23 @@ fn goto_cmd(
         model_path.parent().unwrap_or(Path::new(".")).to_path_buf()
     };
     let out = out.unwrap_or_else(|| dir.join("goto"));
-    let opts = GoToOptions { iterations, envs, steps, seed, trials, eval_seed: 4242, episode_s: 10.0, progress: true };
+    let opts = GoToOptions {
+        iterations,
+        envs,
+        steps,
+        seed,
+        trials,
+        eval_seed: 4242,
+        episode_s: 10.0,
+        init_log_std,
+        progress: true,
+    };
     let outcome = train_goto(&setup.model, &settings, &policy, model_path, &opts, &out.join("run"))?;
     outcome.policy.save(&out.join("high_level.safetensors"))?;
     let (zero, trained, minutes) = (outcome.zero, outcome.trained, outcome.minutes);
     let mut md = format!(
         "Go to a target 2–4 m away within ±90° of the start heading (reached within 0.5 m, 10 s limit), \
-         starting mid-stride from {} frames, through the frozen decoder of {}; {} PPO iterations ({} steps, {:.1} min).\n\n",
+         starting mid-stride from {} frames, through the frozen decoder of {}; {} PPO iterations ({} steps, {:.1} min, initial log-std {init_log_std}).\n\n",
         setup.spec.spec.name,
         model_path.display(),
         iterations,

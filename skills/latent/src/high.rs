@@ -228,6 +228,8 @@ pub struct GoToOptions {
     pub eval_seed: u64,
     /// Episode limit (s).
     pub episode_s: f64,
+    /// Initial log standard deviation of the high level's Gaussian over `z`.
+    pub init_log_std: f32,
     /// Show a progress bar.
     pub progress: bool,
 }
@@ -374,7 +376,7 @@ pub fn train_goto(
         policy: PolicyConfig {
             policy_hidden: vec![64, 64],
             value_hidden: vec![64, 64],
-            init_log_std: -0.5,
+            init_log_std: opts.init_log_std,
             learn_log_std: true,
         },
         ..PpoConfig::default()
