@@ -508,6 +508,8 @@ pub struct LatentPolicy {
     /// Input statistics.
     pub norm: InputNorm,
     z_prev: Vec<f32>,
+    mu: Vec<f32>,
+    log_std: Vec<f32>,
     enc_in: Vec<f32>,
     enc_out: Vec<f32>,
     dec_in: Vec<f32>,
@@ -557,6 +559,8 @@ impl LatentPolicy {
             decoder,
             norm,
             z_prev: Vec::new(),
+            mu: Vec::new(),
+            log_std: Vec::new(),
             enc_in: Vec::new(),
             enc_out: Vec::new(),
             dec_in: Vec::new(),
@@ -753,11 +757,16 @@ impl Controller for LatentPolicy {
         let z = self.latent_dim();
         let b = actions.len() / self.manifest.act_dim;
         self.z_prev.resize(b * z, 0.0);
-        let mut mu = vec![0.0f32; b * z];
-        let mut log_std = vec![0.0f32; b * z];
+        let mut mu = std::mem::take(&mut self.mu);
+        let mut log_std = std::mem::take(&mut self.log_std);
+        mu.resize(b * z, 0.0);
+        log_std.resize(b * z, 0.0);
         let z_prev = std::mem::take(&mut self.z_prev);
         self.encode(reference, &z_prev, &mut mu, &mut log_std);
         self.decode(proprio, &mu, actions);
+        // z_t becomes the next step's z_{t−1}; the old buffer is reused for the next μ.
         self.z_prev = mu;
+        self.mu = z_prev;
+        self.log_std = log_std;
     }
 }

@@ -145,6 +145,8 @@ pub fn rollout(
     let mut max_len = vec![0u32; batch];
     let mut returns = vec![0.0f64; batch];
     let mut active = vec![false; batch];
+    let mut frames_before = vec![0u32; batch];
+    let mut steps_before = vec![0u32; batch];
     let mut noise = EnvRng::seed_from_u64(opts.seed ^ 0x006e_6f69_7365);
     let im = settings.imitation;
     let frames = settings.reference.frames() as u32;
@@ -205,8 +207,10 @@ pub fn rollout(
             let eps = if opts.noise_std > 0.0 { repertoire_learn::policy::standard_normal(&mut noise) } else { 0.0 };
             *t = (*m + opts.noise_std * eps).clamp(-1.0, 1.0);
         }
-        let frames_before: Vec<u32> = envs.iter().map(|e| e.task().phase() as u32).collect();
-        let steps_before: Vec<u32> = envs.iter().map(|e| e.steps()).collect();
+        for (i, env) in envs.iter().enumerate() {
+            frames_before[i] = env.task().phase() as u32;
+            steps_before[i] = env.steps();
+        }
         let outcomes: Vec<_> = envs
             .par_iter_mut()
             .zip(obs.par_chunks_mut(od))

@@ -277,6 +277,23 @@ fn training_lowers_the_loss_and_the_model_reloads_identically() {
     assert_eq!(a1, a2);
     assert!(a1.iter().all(|v| v.is_finite()));
 
+    // As a controller it carries z: step 2 encodes with step 1's μ as z_{t−1} (zero at the start).
+    use repertoire_latent::rollout::Controller;
+    let b = 3;
+    let (refs, props) = (&data.reference[..b * f], &data.proprio[..b * s]);
+    let mut acts = vec![0.0; b * a];
+    for i in 0..b {
+        back.begin(i);
+    }
+    back.act(&[], props, refs, &mut acts);
+    back.act(&[], props, refs, &mut acts);
+    let (mut m0, mut l0, mut m1, mut l1) = (vec![0.0; b * z], vec![0.0; b * z], vec![0.0; b * z], vec![0.0; b * z]);
+    policy.encode(refs, &vec![0.0; b * z], &mut m0, &mut l0);
+    policy.encode(refs, &m0, &mut m1, &mut l1);
+    let mut want = vec![0.0; b * a];
+    policy.decode(props, &m1, &mut want);
+    assert_eq!(acts, want);
+
     // A decoder that would read a prop, and damaged weights, are refused naming the file.
     let text = std::fs::read_to_string(out.join("latent.ron")).unwrap();
     let with_prop = text.replacen("FootContacts,", "FootContacts,\n        PropPose(\"chair\"),", 1);
@@ -365,6 +382,7 @@ fn a_high_level_over_z_drives_the_frozen_decoder_to_a_target() {
         trials: 3,
         eval_seed: 9,
         episode_s: 1.0,
+        init_log_std: -1.0,
         progress: false,
     };
     let got = train_goto(&setup.model, &settings, &policy, &path, &o, &out).expect("trains the high level");
