@@ -284,7 +284,14 @@ pub fn run(cmd: LatentCommand) -> Result<()> {
             let out = out.unwrap_or_else(|| dir.join("eval"));
             std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
             let md = markdown(&rows);
-            repertoire_latent::error::write_atomic(&out.join("one_shot.md"), md.as_bytes())?;
+            let page = format!(
+                "One-shot imitation through {} ({} episodes per clip from random reference frames, start seed \
+                 {seed}, the same starts for the expert and the latent model; lengths and returns normalised as \
+                 in MoCapAct Table 2). Command: `{command}`\n\n{md}",
+                model.display(),
+                episodes
+            );
+            repertoire_latent::error::write_atomic(&out.join("one_shot.md"), page.as_bytes())?;
             repertoire_latent::error::write_atomic(&out.join("one_shot.csv"), csv(&rows).as_bytes())?;
             print!("{md}");
             println!("written to {}", out.join("one_shot.md").display());
