@@ -4,7 +4,7 @@
 # frames of walk, turn_left, turn_right and sit, the encoder/decoder trained for a bounded time,
 # one-shot imitation against the experts, and a go-to-target high level trained over z.
 # Usage: bash scripts/train-latent.sh [OUT] — env: STEPS (25000 per skill), MINUTES (20),
-# EPISODES (100), GOTO_ITERS (300), WEIGHTING (bc | clip | rwr).
+# EPISODES (100), GOTO_ITERS (1500), WEIGHTING (bc | clip | rwr).
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$root"
@@ -16,4 +16,4 @@ data="runs/latent-data-$(date +%s)"
 "$bin" latent collect --steps "${STEPS:-25000}" --out "$data"
 "$bin" latent train "$data" --minutes "${MINUTES:-20}" --weighting "${WEIGHTING:-bc}" --out "$out"
 "$bin" latent eval "$out" --episodes "${EPISODES:-100}"
-"$bin" latent goto "$out" --iterations "${GOTO_ITERS:-300}"
+"$bin" latent goto "$out" --iterations "${GOTO_ITERS:-1500}"
