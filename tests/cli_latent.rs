@@ -52,6 +52,26 @@ fn collect_train_and_eval_a_latent_model() {
     assert!(text.contains("| walk | 2 |") && text.contains("| mean |"), "{text}");
     assert!(model.join("eval/one_shot.md").exists() && model.join("eval/one_shot.csv").exists());
 
+    // A high level over z for one PPO iteration, beside z = 0.
+    let text = ok(&repertoire(&[
+        "latent",
+        "goto",
+        model.to_str().unwrap(),
+        "--iterations",
+        "1",
+        "--envs",
+        "2",
+        "--steps",
+        "8",
+        "--trials",
+        "2",
+        "--run-dir",
+        dir.join("goto-run").to_str().unwrap(),
+    ]));
+    assert!(text.contains("| constant z = 0 | 2 |") && text.contains("| PPO over z | 2 |"), "{text}");
+    assert!(model.join("goto/goto.md").exists() && model.join("goto/high_level.safetensors").exists());
+    assert!(dir.join("goto-run/metrics.csv").exists());
+
     // A config with an unknown field, a missing dataset, a missing spec.
     let bad = common::write(&dir, "bad.ron", "LatentConfig(\n  latent_dim: 4,\n  wings: 2,\n)");
     let out = repertoire(&["latent", "train", data.to_str().unwrap(), "--config", bad.to_str().unwrap()]);

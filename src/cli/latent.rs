@@ -149,9 +149,13 @@ pub enum LatentCommand {
         /// Initial log standard deviation of the high level's Gaussian over z.
         #[arg(long, default_value_t = -1.0, allow_hyphen_values = true)]
         init_log_std: f32,
-        /// Output folder (default: MODEL/goto).
+        /// Output folder of the table and the trained high level (default: MODEL/goto); training
+        /// metrics go to --run-dir.
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Run folder of the training metrics (default: runs/latent-goto-<time>-s<seed>).
+        #[arg(long)]
+        run_dir: Option<PathBuf>,
     },
 }
 
@@ -297,9 +301,19 @@ pub fn run(cmd: LatentCommand) -> Result<()> {
             println!("written to {}", out.join("one_shot.md").display());
             Ok(())
         }
-        LatentCommand::Goto { model, start, library, iterations, envs, steps, seed, trials, init_log_std, out } => {
-            goto_cmd(&model, &start, &library, iterations, envs, steps, seed, trials, init_log_std, out)
-        }
+        LatentCommand::Goto {
+            model,
+            start,
+            library,
+            iterations,
+            envs,
+            steps,
+            seed,
+            trials,
+            init_log_std,
+            out,
+            run_dir,
+        } => goto_cmd(&model, &start, &library, iterations, envs, steps, seed, trials, init_log_std, out, run_dir),
     }
 }
 
@@ -315,6 +329,7 @@ fn goto_cmd(
     trials: usize,
     init_log_std: f32,
     out: Option<PathBuf>,
+    run_dir: Option<PathBuf>,
 ) -> Result<()> {
     use repertoire_latent::high::{GoToOptions, GoToSettings, train_goto};
     use std::sync::Arc;
@@ -346,7 +361,10 @@ fn goto_cmd(
         init_log_std,
         progress: true,
     };
-    let outcome = train_goto(&setup.model, &settings, &policy, model_path, &opts, &out.join("run"))?;
+    std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+    // Training metrics go to a run folder under runs/, the table and the policy beside the model.
+    let run_dir = run_dir.unwrap_or_else(|| default_run_dir(Path::new("runs"), "latent-goto", seed));
+    let outcome = train_goto(&setup.model, &settings, &policy, model_path, &opts, &run_dir)?;
     outcome.policy.save(&out.join("high_level.safetensors"))?;
     let (zero, trained, minutes) = (outcome.zero, outcome.trained, outcome.minutes);
     let mut md = format!(
@@ -373,6 +391,6 @@ fn goto_cmd(
     }
     repertoire_latent::error::write_atomic(&out.join("goto.md"), md.as_bytes())?;
     print!("{md}");
-    println!("written to {}", out.join("goto.md").display());
+    println!("written to {}; training metrics in {}", out.join("goto.md").display(), run_dir.display());
     Ok(())
 }
