@@ -3,6 +3,7 @@
 mod ablate;
 mod bench;
 mod clip;
+mod latent;
 mod meta;
 pub mod replay;
 mod report;
@@ -42,6 +43,10 @@ pub enum Command {
     /// Train, fine-tune and evaluate skills.
     #[command(subcommand)]
     Skill(skill::SkillCommand),
+    /// The NPMP latent low level: collect expert rollouts, train the encoder/decoder, one-shot
+    /// imitation.
+    #[command(subcommand)]
+    Latent(latent::LatentCommand),
     /// Train and evaluate the meta-controller of a scenario (sitting, warehouse, toss).
     #[command(subcommand)]
     Meta(meta::MetaCommand),
@@ -86,6 +91,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Clip(cmd) => clip::run(cmd),
         Command::Skill(cmd) => skill::run(cmd),
         Command::Meta(cmd) => meta::run(cmd),
+        Command::Latent(cmd) => latent::run(cmd),
         Command::Replay(args) => replay::replay(args),
         Command::Export(args) => replay::export(args),
         Command::Ablate { spec, out, plan_only, seeds, iterations, trials } => {

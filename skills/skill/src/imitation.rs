@@ -209,20 +209,7 @@ impl ImitationTask {
         let r = &self.settings.reference;
         let f = self.phase.min(r.frames() - 1);
         qpos.copy_from_slice(world.data().qpos());
-        let mut p = [r.root_pos[f][0], r.root_pos[f][1]];
-        let mut turned = 0.0;
-        if r.looping {
-            // Each cycle starts where the last one ended: frame 0's root pose maps to the last's.
-            let last = r.frames() - 1;
-            let dh = r.heading[last] - r.heading[0];
-            let (p0, pl) = (r.root_pos[0], r.root_pos[last]);
-            for _ in 0..self.cycles {
-                let d = rotate_z(dh, [p[0] - p0[0], p[1] - p0[1], 0.0]);
-                p = [pl[0] + d[0], pl[1] + d[1]];
-                turned += dh;
-            }
-        }
-        let [x, y] = self.to_world(p);
+        let ([x, y], turned) = self.clip_root(f, self.cycles);
         let idx = &world.model().index;
         let q = mul(yaw_quat(self.yaw + turned), r.root_quat[f]);
         let root = idx.root_qpos;
@@ -231,6 +218,40 @@ impl ImitationTask {
         for (j, &a) in idx.joints.iter().zip(r.joints_at(f)) {
             qpos[j.qpos] = a;
         }
+    }
+
+    /// The reference frame `ahead` control steps after the current phase, placed in this
+    /// episode's world: its frame index, root position and heading (world). A looping clip
+    /// carries on across cycles; a clip that ends holds its last frame.
+    pub fn reference_ahead(&self, ahead: usize) -> (usize, [f64; 3], f64) {
+        let r = &self.settings.reference;
+        let (f, cycles) = if r.looping {
+            let total = self.phase + ahead;
+            (total % self.cycle_len(), self.cycles + total / self.cycle_len())
+        } else {
+            ((self.phase + ahead).min(r.frames() - 1), self.cycles)
+        };
+        let ([x, y], turned) = self.clip_root(f, cycles);
+        (f, [x, y, r.root_pos[f][2]], r.heading[f] + self.yaw + turned)
+    }
+
+    /// Frame `f`'s root (world xy) after `cycles` completed cycles, and the heading those cycles
+    /// turned: each cycle of a looping clip starts where the last one ended.
+    fn clip_root(&self, f: usize, cycles: usize) -> ([f64; 2], f64) {
+        let r = &self.settings.reference;
+        let mut p = [r.root_pos[f][0], r.root_pos[f][1]];
+        let mut turned = 0.0;
+        if r.looping {
+            let last = r.frames() - 1;
+            let dh = r.heading[last] - r.heading[0];
+            let (p0, pl) = (r.root_pos[0], r.root_pos[last]);
+            for _ in 0..cycles {
+                let d = rotate_z(dh, [p[0] - p0[0], p[1] - p0[1], 0.0]);
+                p = [pl[0] + d[0], pl[1] + d[1]];
+                turned += dh;
+            }
+        }
+        (self.to_world(p), turned)
     }
 
     /// Scores `world` against reference frame `f`: the reward, whether it fell, and the terms.

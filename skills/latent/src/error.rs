@@ -1,0 +1,87 @@
+//! Errors of datasets and latent models: each names the file and what is wrong with it.
+
+use std::path::{Path, PathBuf};
+
+/// What went wrong with a dataset, a latent model or their inputs.
+#[derive(Debug, thiserror::Error)]
+pub enum LatentError {
+    /// A file could not be read or written.
+    #[error("{}: {what}: {source}", path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// What was being done.
+        what: &'static str,
+        /// The OS error.
+        source: std::io::Error,
+    },
+    /// A RON manifest did not parse.
+    #[error("{}:{line}:{col}: {message}", file.display())]
+    Ron {
+        /// The file.
+        file: PathBuf,
+        /// 1-based line.
+        line: usize,
+        /// 1-based column.
+        col: usize,
+        /// What the parser said.
+        message: String,
+    },
+    /// A file is damaged or does not agree with its manifest.
+    #[error("{}: {reason}", path.display())]
+    Corrupt {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        reason: String,
+    },
+    /// A dataset or model does not fit what it is used with (body, layout, shapes).
+    #[error("{}: {message}", path.display())]
+    Mismatch {
+        /// The manifest.
+        path: PathBuf,
+        /// The first difference.
+        message: String,
+    },
+    /// A setting or argument is out of range.
+    #[error("{0}")]
+    Invalid(String),
+    /// From the skill crate (specs, library).
+    #[error(transparent)]
+    Skill(#[from] repertoire_skill::SkillError),
+    /// From the scene crate (layouts, worlds).
+    #[error(transparent)]
+    Scene(#[from] repertoire_scenes::SceneError),
+}
+
+impl LatentError {
+    /// An I/O error on `path`.
+    pub fn io(path: &Path, what: &'static str, source: std::io::Error) -> Self {
+        LatentError::Io { path: path.to_path_buf(), what, source }
+    }
+
+    /// A RON error in `file`.
+    pub fn ron(file: &Path, err: ron::error::SpannedError) -> Self {
+        LatentError::Ron {
+            file: file.to_path_buf(),
+            line: err.span.start.line,
+            col: err.span.start.col,
+            message: err.code.to_string(),
+        }
+    }
+
+    /// A damaged file.
+    pub fn corrupt(path: &Path, reason: impl Into<String>) -> Self {
+        LatentError::Corrupt { path: path.to_path_buf(), reason: reason.into() }
+    }
+}
+
+/// Result alias for this crate.
+pub type Result<T, E = LatentError> = std::result::Result<T, E>;
+
+/// Writes `bytes` to `path` via `path.partial` and a rename, so readers never see half a file.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let partial = PathBuf::from(format!("{}.partial", path.display()));
+    std::fs::write(&partial, bytes).map_err(|e| LatentError::io(&partial, "cannot write", e))?;
+    std::fs::rename(&partial, path).map_err(|e| LatentError::io(path, "cannot rename into place", e))
+}

@@ -1,0 +1,396 @@
+//! `repertoire latent collect | train | eval`: the NPMP latent low level: expert rollouts into a
+//! dataset, the encoder/decoder trained on it, one-shot imitation against the experts.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result, bail};
+use clap::{Subcommand, ValueEnum};
+use repertoire_latent::dataset::{CollectOptions, Dataset, collect};
+use repertoire_latent::eval::{csv, markdown, one_shot};
+use repertoire_latent::model::{LatentConfig, LatentPolicy, Weighting};
+use repertoire_latent::train::{TrainOptions, train};
+use repertoire_skill::train::default_run_dir;
+
+const DEFAULT_LIBRARY: &str = "skills/library";
+const DEFAULT_SPECS: &str = "skills/skill/specs";
+const DEFAULT_SKILLS: [&str; 4] = ["walk", "turn_left", "turn_right", "sit"];
+
+/// Loss weighting on the command line.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum WeightingArg {
+    /// Behaviour cloning (every transition the same).
+    Bc,
+    /// Every skill's transitions together the same.
+    Clip,
+    /// Reward-weighted regression on the imitation return-to-go.
+    Rwr,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum LatentCommand {
+    /// Run library skills with action noise from random clip frames and store their
+    /// transitions (proprioception, the next k reference frames, mean and noisy actions,
+    /// imitation reward) as a dataset: dataset.safetensors + dataset.ron.
+    Collect {
+        /// Skills to run (their specs in --specs, their policies in --library).
+        #[arg(long, value_delimiter = ',', default_values_t = DEFAULT_SKILLS.map(String::from))]
+        skills: Vec<String>,
+        /// Folder of the skill specs.
+        #[arg(long, default_value = DEFAULT_SPECS)]
+        specs: PathBuf,
+        /// Skill library folder.
+        #[arg(long, default_value = DEFAULT_LIBRARY)]
+        library: PathBuf,
+        /// Transitions per skill.
+        #[arg(long, default_value_t = 25_000)]
+        steps: u64,
+        /// Reference frames ahead in the encoder's input.
+        #[arg(long, default_value_t = 5)]
+        k: usize,
+        /// Standard deviation of the action noise.
+        #[arg(long, default_value_t = 0.1)]
+        noise: f32,
+        /// Environments stepped together.
+        #[arg(long, default_value_t = 16)]
+        batch: usize,
+        /// Seed.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Output folder (default: runs/latent-data-<time>-s<seed>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// Train the encoder and decoder on a dataset into a model folder (latent.ron +
+    /// latent.safetensors, metrics.csv).
+    Train {
+        /// The dataset folder (from `latent collect`).
+        data: PathBuf,
+        /// A LatentConfig in RON (defaults: 60-D latent, α 0.95, β 0.01, 2×256 MLPs).
+        #[arg(long)]
+        config: Option<PathBuf>,
+        /// Override the latent width.
+        #[arg(long)]
+        latent_dim: Option<usize>,
+        /// Override the KL weight β.
+        #[arg(long)]
+        beta: Option<f32>,
+        /// Loss weighting.
+        #[arg(long, value_enum)]
+        weighting: Option<WeightingArg>,
+        /// RWR temperature (on the imitation return-to-go).
+        #[arg(long, default_value_t = 1.0)]
+        rwr_temperature: f32,
+        /// Most Adam updates.
+        #[arg(long, default_value_t = 1_000_000)]
+        updates: usize,
+        /// Most minutes of training.
+        #[arg(long, default_value_t = 20.0)]
+        minutes: f64,
+        /// Seed (default: the config's).
+        #[arg(long)]
+        seed: Option<u64>,
+        /// Output folder (default: runs/latent-<time>-s<seed>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// One-shot imitation: track each skill's clip from random frames with the expert and with
+    /// the latent model; normalised episode length and return side by side (one_shot.md/.csv).
+    Eval {
+        /// The model folder (from `latent train`).
+        model: PathBuf,
+        /// Skills whose clips are tracked.
+        #[arg(long, value_delimiter = ',', default_values_t = DEFAULT_SKILLS.map(String::from))]
+        skills: Vec<String>,
+        /// Folder of the skill specs.
+        #[arg(long, default_value = DEFAULT_SPECS)]
+        specs: PathBuf,
+        /// Skill library folder.
+        #[arg(long, default_value = DEFAULT_LIBRARY)]
+        library: PathBuf,
+        /// Episodes per skill and controller.
+        #[arg(long, default_value_t = 100)]
+        episodes: usize,
+        /// Environments stepped together.
+        #[arg(long, default_value_t = 16)]
+        batch: usize,
+        /// Seed of the start states (the same for both controllers).
+        #[arg(long, default_value_t = 12345)]
+        seed: u64,
+        /// Output folder (default: MODEL/eval).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// Train a high-level policy whose action is the latent z (bounded to ±2) on a go-to-target
+    /// task through the frozen decoder (PPO), and evaluate it beside a constant z = 0.
+    Goto {
+        /// The model folder (from `latent train`).
+        model: PathBuf,
+        /// The skill spec whose clip frames episodes start from (and whose scene is used).
+        #[arg(long, default_value = "skills/skill/specs/walk.ron")]
+        start: PathBuf,
+        /// Skill library folder (for the spec's pools, if any).
+        #[arg(long, default_value = DEFAULT_LIBRARY)]
+        library: PathBuf,
+        /// PPO iterations.
+        #[arg(long, default_value_t = 1500)]
+        iterations: usize,
+        /// Parallel environments.
+        #[arg(long, default_value_t = 16)]
+        envs: usize,
+        /// Steps per environment per iteration.
+        #[arg(long, default_value_t = 128)]
+        steps: usize,
+        /// Seed of training.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Evaluation trials (before and after training, on the same starts).
+        #[arg(long, default_value_t = 100)]
+        trials: usize,
+        /// Initial log standard deviation of the high level's Gaussian over z.
+        #[arg(long, default_value_t = -1.0, allow_hyphen_values = true)]
+        init_log_std: f32,
+        /// Output folder of the table and the trained high level (default: MODEL/goto); training
+        /// metrics go to --run-dir.
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Run folder of the training metrics (default: runs/latent-goto-<time>-s<seed>).
+        #[arg(long)]
+        run_dir: Option<PathBuf>,
+    },
+}
+
+fn spec_paths(specs: &Path, skills: &[String]) -> Result<Vec<PathBuf>> {
+    if skills.is_empty() {
+        bail!("no skill named");
+    }
+    skills
+        .iter()
+        .map(|s| {
+            let p = specs.join(format!("{s}.ron"));
+            if p.exists() { Ok(p) } else { bail!("no spec for skill `{s}`: {} does not exist", p.display()) }
+        })
+        .collect()
+}
+
+pub fn run(cmd: LatentCommand) -> Result<()> {
+    let command = std::env::args().collect::<Vec<_>>().join(" ");
+    match cmd {
+        LatentCommand::Collect { skills, specs, library, steps, k, noise, batch, seed, out } => {
+            let out = out.unwrap_or_else(|| default_run_dir(Path::new("runs"), "latent-data", seed));
+            let opts = CollectOptions {
+                library,
+                specs: spec_paths(&specs, &skills)?,
+                steps_per_skill: steps,
+                k,
+                noise_std: noise,
+                batch,
+                seed,
+                progress: true,
+                command,
+            };
+            let begin = std::time::Instant::now();
+            let mut data = collect(&opts).context("collecting expert rollouts")?;
+            let bytes = data.save(&out)?;
+            let m = &data.manifest;
+            println!("| skill | transitions | episodes | falls |");
+            println!("|---|---:|---:|---:|");
+            for s in &m.skills {
+                println!("| {} | {} | {} | {} |", s.name, s.steps, s.episodes, s.falls);
+            }
+            println!(
+                "{} transitions in {:.1} s; {} written ({:.1} MB, {:.1} MB per 10^5 steps; {} values per step)",
+                m.steps,
+                begin.elapsed().as_secs_f64(),
+                out.display(),
+                bytes as f64 / 1e6,
+                bytes as f64 / 1e6 * 1e5 / m.steps.max(1) as f64,
+                m.proprio.size + m.reference_size + 2 * m.act_dim + 1
+            );
+            Ok(())
+        }
+        LatentCommand::Train {
+            data,
+            config,
+            latent_dim,
+            beta,
+            weighting,
+            rwr_temperature,
+            updates,
+            minutes,
+            seed,
+            out,
+        } => {
+            let mut cfg = match &config {
+                Some(p) => {
+                    let text = std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?;
+                    ron::from_str::<LatentConfig>(&text).map_err(|e| {
+                        anyhow::anyhow!("{}:{}:{}: {}", p.display(), e.span.start.line, e.span.start.col, e.code)
+                    })?
+                }
+                None => LatentConfig::default(),
+            };
+            if let Some(z) = latent_dim {
+                cfg.latent_dim = z;
+            }
+            if let Some(b) = beta {
+                cfg.beta = b;
+            }
+            if let Some(s) = seed {
+                cfg.seed = s;
+            }
+            match weighting {
+                Some(WeightingArg::Bc) => cfg.weighting = Weighting::Bc,
+                Some(WeightingArg::Clip) => cfg.weighting = Weighting::ClipBalanced,
+                Some(WeightingArg::Rwr) => {
+                    cfg.weighting = Weighting::Rwr { temperature: rwr_temperature, gamma: 0.95, max_weight: 20.0 }
+                }
+                None => {}
+            }
+            let dataset = Dataset::load(&data)?;
+            let out = out.unwrap_or_else(|| default_run_dir(Path::new("runs"), "latent", cfg.seed));
+            std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+            tracing::info!(transitions = dataset.len(), out = %out.display(), "training the latent model");
+            let opts = TrainOptions {
+                max_updates: updates,
+                max_seconds: minutes * 60.0,
+                log_every: 50,
+                progress: true,
+                metrics_csv: Some(out.join("metrics.csv")),
+                command,
+            };
+            let (mut policy, _) = train(&dataset, &data, cfg, &opts)?;
+            let path = policy.save(&out)?;
+            let t = &policy.manifest.training;
+            println!("| updates | rows | minutes | loss | −log π | KL | action MSE |");
+            println!("|---:|---:|---:|---:|---:|---:|---:|");
+            println!(
+                "| {} | {} | {:.1} | {:.2} → {:.2} | {:.2} → {:.2} | {:.2} → {:.2} | {:.4} → {:.4} |",
+                t.updates,
+                t.rows,
+                t.seconds / 60.0,
+                t.first.loss,
+                t.last.loss,
+                t.first.nll,
+                t.last.nll,
+                t.first.kl,
+                t.last.kl,
+                t.first.action_mse,
+                t.last.action_mse
+            );
+            println!("model written to {}", path.display());
+            Ok(())
+        }
+        LatentCommand::Eval { model, skills, specs, library, episodes, batch, seed, out } => {
+            let mut policy = LatentPolicy::load(&model)?;
+            let rows = one_shot(&mut policy, &model, &library, &spec_paths(&specs, &skills)?, episodes, batch, seed)?;
+            let dir =
+                if model.is_dir() { model.clone() } else { model.parent().unwrap_or(Path::new(".")).to_path_buf() };
+            let out = out.unwrap_or_else(|| dir.join("eval"));
+            std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+            let md = markdown(&rows);
+            let page = format!(
+                "One-shot imitation through {} ({} episodes per clip from random reference frames, start seed \
+                 {seed}, the same starts for the expert and the latent model; lengths and returns normalised as \
+                 in MoCapAct Table 2). Command: `{command}`\n\n{md}",
+                model.display(),
+                episodes
+            );
+            repertoire_latent::error::write_atomic(&out.join("one_shot.md"), page.as_bytes())?;
+            repertoire_latent::error::write_atomic(&out.join("one_shot.csv"), csv(&rows).as_bytes())?;
+            print!("{md}");
+            println!("written to {}", out.join("one_shot.md").display());
+            Ok(())
+        }
+        LatentCommand::Goto {
+            model,
+            start,
+            library,
+            iterations,
+            envs,
+            steps,
+            seed,
+            trials,
+            init_log_std,
+            out,
+            run_dir,
+        } => goto_cmd(&model, &start, &library, iterations, envs, steps, seed, trials, init_log_std, out, run_dir),
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn goto_cmd(
+    model_path: &Path,
+    start: &Path,
+    library: &Path,
+    iterations: usize,
+    envs: usize,
+    steps: usize,
+    seed: u64,
+    trials: usize,
+    init_log_std: f32,
+    out: Option<PathBuf>,
+    run_dir: Option<PathBuf>,
+) -> Result<()> {
+    use repertoire_latent::high::{GoToOptions, GoToSettings, train_goto};
+    use std::sync::Arc;
+
+    let policy = LatentPolicy::load(model_path)?;
+    let setup = repertoire_skill::SkillSetup::new(repertoire_skill::SpecFile::load(start)?, library)?;
+    let settings = Arc::new(GoToSettings {
+        start: Arc::clone(&setup.settings),
+        distance_m: (2.0, 4.0),
+        azimuth_deg: 90.0,
+        reach_m: 0.5,
+        reach_bonus: 10.0,
+        min_height: 0.5,
+    });
+    let dir = if model_path.is_dir() {
+        model_path.to_path_buf()
+    } else {
+        model_path.parent().unwrap_or(Path::new(".")).to_path_buf()
+    };
+    let out = out.unwrap_or_else(|| dir.join("goto"));
+    let opts = GoToOptions {
+        iterations,
+        envs,
+        steps,
+        seed,
+        trials,
+        eval_seed: 4242,
+        episode_s: 10.0,
+        init_log_std,
+        progress: true,
+    };
+    std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+    // Training metrics go to a run folder under runs/, the table and the policy beside the model.
+    let run_dir = run_dir.unwrap_or_else(|| default_run_dir(Path::new("runs"), "latent-goto", seed));
+    let outcome = train_goto(&setup.model, &settings, &policy, model_path, &opts, &run_dir)?;
+    outcome.policy.save(&out.join("high_level.safetensors"))?;
+    let (zero, trained, minutes) = (outcome.zero, outcome.trained, outcome.minutes);
+    let mut md = format!(
+        "Go to a target 2–4 m away within ±90° of the start heading (reached within 0.5 m, 10 s limit), \
+         starting mid-stride from {} frames, through the frozen decoder of {}; {} PPO iterations ({} steps, {:.1} min, initial log-std {init_log_std}).\n\n",
+        setup.spec.spec.name,
+        model_path.display(),
+        iterations,
+        outcome.samples,
+        minutes
+    );
+    md.push_str(
+        "| high level | trials | reached | falls | min distance (m) | episode (s) |\n|---|---:|---:|---:|---:|---:|\n",
+    );
+    for (name, r) in [("constant z = 0", zero), ("PPO over z", trained)] {
+        md.push_str(&format!(
+            "| {name} | {} | {:.1} % | {:.1} % | {:.2} | {:.1} |\n",
+            r.trials,
+            100.0 * r.success_rate,
+            100.0 * r.fall_rate,
+            r.mean_min_distance,
+            r.mean_seconds
+        ));
+    }
+    repertoire_latent::error::write_atomic(&out.join("goto.md"), md.as_bytes())?;
+    print!("{md}");
+    println!("written to {}; training metrics in {}", out.join("goto.md").display(), run_dir.display());
+    Ok(())
+}
