@@ -9,6 +9,9 @@ pub enum MetaError {
     /// From the skill library.
     #[error(transparent)]
     Skill(#[from] repertoire_skill::SkillError),
+    /// From the latent model.
+    #[error(transparent)]
+    Latent(#[from] repertoire_latent::LatentError),
     /// From the scene.
     #[error(transparent)]
     Scene(#[from] repertoire_scenes::SceneError),

@@ -243,13 +243,16 @@ fn row(zone: &str, trials: &[&Trial]) -> ZoneRow {
     }
 }
 
-fn report(zones: &[String], skills: Vec<String>, trials: Vec<Trial>) -> MetaReport {
+/// The report of `trials` over `zones`; with no `skills` (the latent low level), no transition
+/// matrices.
+pub(crate) fn report(zones: &[String], skills: Vec<String>, trials: Vec<Trial>) -> MetaReport {
     let mut rows: Vec<ZoneRow> =
         zones.iter().map(|z| row(z, &trials.iter().filter(|t| &t.zone == z).collect::<Vec<_>>())).collect();
     rows.push(row("all", &trials.iter().collect::<Vec<_>>()));
     let k = skills.len();
     let index = |name: &str| skills.iter().position(|s| s == name).expect("a known skill");
-    let transitions = ["left", "right"]
+    let sides: &[&str] = if skills.is_empty() { &[] } else { &["left", "right"] };
+    let transitions = sides
         .iter()
         .map(|side| {
             let mut m = vec![vec![0u32; k]; k + 1];

@@ -1,11 +1,13 @@
 //! The high level: the skill graph, the tasks' success tests (sitting, the warehouse, the toss),
-//! the meta-controller environment over frozen skills, its training and evaluation.
+//! the meta-controller environment over frozen skills, its training and evaluation, and the
+//! latent low level ([`latent`]) as the alternative to the skills.
 
 pub mod env;
 pub mod error;
 pub mod eval;
 pub mod graph;
 pub mod judge;
+pub mod latent;
 pub mod task;
 pub mod task_eval;
 pub mod toss;

@@ -23,7 +23,7 @@ pub use error::{Location, Result, SceneError};
 pub use obs::{Feature, ObservationLayout};
 pub use param::Param;
 pub use record::{Annotation, RecordOptions, Recorder, Recording};
-pub use scenario::{Prop, Scenario, ScenarioFile};
+pub use scenario::{LowLevel, Prop, Scenario, ScenarioFile};
 pub use throw::{Throw, ThrowSpec};
 pub use world::{Contacts, World, WorldModel, step_parallel};
 

@@ -48,6 +48,21 @@ pub struct Scenario {
     /// Zone curriculum for training the meta-controller.
     #[serde(default)]
     pub curriculum: Option<Curriculum>,
+    /// What the high level drives: the discrete skills (default) or a learned latent space.
+    #[serde(default)]
+    pub low_level: LowLevel,
+}
+
+/// The low level a scenario's high-level controller acts through.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize, Default)]
+pub enum LowLevel {
+    /// The meta-controller picks among the frozen skills of the library (and a 2-D target).
+    #[default]
+    Skills,
+    /// A high-level policy emits a latent `z ∈ (−2, 2)^d` that the frozen decoder of the
+    /// latent model in this folder (holding `latent.ron`, relative to the scenario file) turns
+    /// into joint actions each control tick.
+    Latent(PathBuf),
 }
 
 /// The skill graph of a scenario: the skills an episode may start with and the allowed
@@ -677,6 +692,15 @@ impl ScenarioFile {
         Ok(file)
     }
 
+    /// The latent model folder the scenario's high level drives (resolved against the scenario's
+    /// folder), or `None` for the discrete skills.
+    pub fn latent_dir(&self) -> Option<PathBuf> {
+        match &self.scenario.low_level {
+            LowLevel::Skills => None,
+            LowLevel::Latent(dir) => Some(self.resolve(dir)),
+        }
+    }
+
     /// Resolves a path written in the scenario relative to the scenario's folder.
     pub fn resolve(&self, relative: &Path) -> PathBuf {
         if relative.is_absolute() || self.path.starts_with("<built-in>") {
@@ -804,6 +828,20 @@ impl ScenarioFile {
             }
             Task::Warehouse(w) => self.validate_warehouse(w)?,
             Task::Toss(t) => self.validate_toss(t)?,
+        }
+
+        if let LowLevel::Latent(dir) = &s.low_level {
+            let resolved = self.resolve(dir);
+            if !resolved.join("latent.ron").is_file() {
+                return Err(self.invalid(
+                    Some(&dir.display().to_string()),
+                    format!(
+                        "low_level: no latent model in `{}` (expected {}; train one with `repertoire latent train`)",
+                        dir.display(),
+                        resolved.join("latent.ron").display()
+                    ),
+                ));
+            }
         }
 
         let mut skills = HashSet::new();

@@ -7,6 +7,7 @@ use std::sync::Arc;
 use anyhow::{Context, Result};
 use clap::Subcommand;
 use repertoire_meta::eval::{evaluate, save_worst};
+use repertoire_meta::latent::{self, LatentSetup};
 use repertoire_meta::task_eval::{StartGrid, evaluate_toss, evaluate_warehouse};
 use repertoire_meta::train::{MetaTrainOptions, default_ppo, load, train};
 use repertoire_meta::{MetaSetup, SkillGraph, TaskSpec};
@@ -60,6 +61,13 @@ pub enum MetaCommand {
         /// Restrict the scenario's graph to these skills (e.g. walk,turn_left,sit).
         #[arg(long, value_delimiter = ',')]
         skills: Vec<String>,
+        /// Drive this latent model's decoder instead of the skills (overrides the scenario's
+        /// `low_level`; e.g. skills/library/latent).
+        #[arg(long)]
+        latent: Option<PathBuf>,
+        /// Latent low level: control ticks each z is held.
+        #[arg(long, default_value_t = 1)]
+        hold: usize,
     },
     /// Evaluate a trained meta-controller. Sitting: success and minimum distance per zone,
     /// transition matrices. Warehouse: phases completed per episode by start phase and a pick-up
@@ -109,6 +117,10 @@ pub enum MetaCommand {
         /// three.js is installed); 0 records none.
         #[arg(long, default_value_t = 3)]
         worst: usize,
+        /// Evaluate a high level trained through this latent model (overrides the scenario's
+        /// `low_level`).
+        #[arg(long)]
+        latent: Option<PathBuf>,
     },
 }
 
@@ -129,7 +141,24 @@ pub fn setup(file: Option<&PathBuf>, library: &Path, chain: &[String], skills: &
 pub fn run(cmd: MetaCommand) -> Result<()> {
     let command = std::env::args().collect::<Vec<_>>().join(" ");
     match cmd {
-        MetaCommand::Train { file, library, out, run_dir, iterations, envs, seed, no_curriculum, chain, skills } => {
+        MetaCommand::Train {
+            file,
+            library,
+            out,
+            run_dir,
+            iterations,
+            envs,
+            seed,
+            no_curriculum,
+            chain,
+            skills,
+            latent,
+            hold,
+        } => {
+            if let Some((model, dir)) = latent_low_level(file.as_ref(), latent)? {
+                let args = LatentTrain { library, out, run_dir, iterations, envs, seed, no_curriculum, hold, command };
+                return train_latent(model, &dir, args);
+            }
             let setup = setup(file.as_ref(), &library, &chain, &skills)?;
             let out = out.unwrap_or_else(|| default_meta(&setup));
             let secs = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
@@ -183,7 +212,17 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
             chain,
             skills,
             worst,
+            latent,
         } => {
+            if let Some((model, dir)) = latent_low_level(file.as_ref(), latent)? {
+                let zones = if zones.is_empty() {
+                    model.scenario.scenario.spawn.iter().map(|z| z.name.clone()).collect()
+                } else {
+                    zones
+                };
+                let args = LatentEval { library, meta, trials: trials.unwrap_or(10_000), zones, batch, seed, out };
+                return eval_latent(model, &dir, args);
+            }
             let setup = setup(file.as_ref(), &library, &chain, &skills)?;
             let meta = meta.unwrap_or_else(|| default_meta(&setup));
             let (_, head) = load(&meta, &setup)?;
@@ -234,4 +273,106 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
             Ok(())
         }
     }
+}
+
+/// The scenario of `file` as a built scene and its latent model folder when it is driven
+/// through one: `--latent` when given, else the scenario's `low_level: Latent(..)`; `None` for
+/// the skills.
+fn latent_low_level(file: Option<&PathBuf>, flag: Option<PathBuf>) -> Result<Option<(Arc<WorldModel>, PathBuf)>> {
+    let scenario = super::load_scenario(file)?;
+    let Some(dir) = flag.or_else(|| scenario.latent_dir()) else {
+        return Ok(None);
+    };
+    Ok(Some((Arc::new(WorldModel::build(scenario)?), dir)))
+}
+
+/// Where a latent high level goes when no `--out`/`--meta` is given:
+/// `skills/library/latent-meta-<scenario name>`.
+pub fn default_latent_meta(model: &WorldModel) -> PathBuf {
+    Path::new(DEFAULT_LIBRARY).join(format!("latent-meta-{}", model.scenario.scenario.name))
+}
+
+/// `meta train` through the latent low level.
+struct LatentTrain {
+    library: PathBuf,
+    out: Option<PathBuf>,
+    run_dir: Option<PathBuf>,
+    iterations: usize,
+    envs: usize,
+    seed: u64,
+    no_curriculum: bool,
+    hold: usize,
+    command: String,
+}
+
+fn train_latent(model: Arc<WorldModel>, dir: &Path, a: LatentTrain) -> Result<()> {
+    let setup = Arc::new(
+        LatentSetup::new(model, dir, &a.library, a.hold)
+            .with_context(|| format!("preparing the latent low level {}", dir.display()))?,
+    );
+    let out = a.out.unwrap_or_else(|| default_latent_meta(&setup.model));
+    let secs = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
+    let run_dir = a.run_dir.unwrap_or_else(|| PathBuf::from(format!("runs/latent-meta-{secs}-s{}", a.seed)));
+    let ppo = repertoire_learn::ppo::PpoConfig {
+        num_envs: a.envs,
+        num_iterations: a.iterations,
+        seed: a.seed,
+        ..latent::default_ppo(&setup)
+    };
+    let opts = MetaTrainOptions {
+        out: out.clone(),
+        run_dir: run_dir.clone(),
+        ppo,
+        curriculum: !a.no_curriculum,
+        command: a.command,
+    };
+    let (manifest, history) = latent::train(setup, &opts).context("training the latent high level")?;
+    let last = history.last();
+    println!("| iterations | high-level steps | minutes | mean return | success (last iteration) | zone switches |");
+    println!("|---:|---:|---:|---:|---:|---:|");
+    println!(
+        "| {} | {} | {:.1} | {:.2} | {:.1}% | {} |",
+        manifest.iterations,
+        manifest.samples,
+        manifest.seconds / 60.0,
+        last.map_or(f32::NAN, |m| m.mean_return),
+        100.0 * last.and_then(|m| m.terms.first()).map_or(f32::NAN, |t| t.1),
+        manifest.advances.len()
+    );
+    println!(
+        "latent high level (z of {}, held {} ticks, through {}) written to {}; run in {}",
+        manifest.latent_dim,
+        manifest.hold,
+        manifest.latent_model,
+        out.display(),
+        run_dir.display()
+    );
+    Ok(())
+}
+
+/// `meta eval` through the latent low level.
+struct LatentEval {
+    library: PathBuf,
+    meta: Option<PathBuf>,
+    trials: usize,
+    zones: Vec<String>,
+    batch: usize,
+    seed: u64,
+    out: Option<PathBuf>,
+}
+
+fn eval_latent(model: Arc<WorldModel>, dir: &Path, a: LatentEval) -> Result<()> {
+    let meta = a.meta.unwrap_or_else(|| default_latent_meta(&model));
+    let manifest = latent::read_manifest(&meta)?;
+    let setup = Arc::new(
+        LatentSetup::new(model, dir, &a.library, manifest.hold)
+            .with_context(|| format!("preparing the latent low level {}", dir.display()))?,
+    );
+    let (_, policy) = latent::load(&meta, &setup)?;
+    let out = a.out.unwrap_or_else(|| meta.join("eval"));
+    let report = latent::evaluate(&setup, &policy, &a.zones, a.trials, a.batch, a.seed)?;
+    print!("{}", report.markdown());
+    report.write(&out)?;
+    println!("\nreport.md, trials.csv and report.json written to {}", out.display());
+    Ok(())
 }

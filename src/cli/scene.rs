@@ -111,6 +111,10 @@ fn check(file: Option<PathBuf>) -> Result<()> {
     }
     println!("task      {}", describe_task(&s.task));
     println!("skills    {}", if s.skills.is_empty() { "none".into() } else { s.skills.join(", ") });
+    match model.scenario.latent_dir() {
+        None => println!("low level skills (the meta-controller picks among them)"),
+        Some(dir) => println!("low level latent model {} (a high-level policy over z ∈ (−2, 2)^d)", dir.display()),
+    }
     match &s.curriculum {
         Some(c) => println!(
             "curriculum {} (advance at {:.0} % over {} episodes{})",

@@ -55,6 +55,11 @@ impl<T: Task> LatentEnv<T> {
     pub fn inner(&self) -> &HumanoidEnv<T> {
         &self.inner
     }
+
+    /// The wrapped environment, mutably (a task's evaluation settings).
+    pub fn inner_mut(&mut self) -> &mut HumanoidEnv<T> {
+        &mut self.inner
+    }
 }
 
 impl<T: Task> Env for LatentEnv<T> {

@@ -1,0 +1,619 @@
+//! The latent low level (NPMP) as an alternative to the discrete skills: a scenario's task
+//! ([`TaskSpec`]/[`TaskState`], the same judges as [`crate::MetaEnv`]) driven by a high-level
+//! Gaussian policy whose action is a latent `z ∈ (−2, 2)^d`, which the frozen decoder of a
+//! latent model ([`repertoire_latent::high::LatentEnv`]) turns into joint actions each control
+//! tick. The high level observes proprioception, the task's props and its extra values (the
+//! decoder reads proprioception only); it chooses a new `z` every `hold` control ticks.
+//!
+//! Episodes start as the skills' meta environment starts them: in a spawn zone drawn from the
+//! setup's (curriculum) zones, the task prepared the same way, mid-motion in the start skill's
+//! successful end states when the library has them (`end_poses.ron`), else standing.
+//!
+//! Reward: the task's decision reward computed per control tick. For sitting it is scaled by
+//! `control_dt · meta_hz`, so that the sum over one meta decision's ticks equals what the skills'
+//! meta environment pays for that decision (1 per decision on the seat, `0.5·(−V_sit)` while
+//! approaching): both controllers are trained on the same return per simulated second. The
+//! warehouse's and the toss's rewards are events (a phase done, time in the bucket) and are paid
+//! unscaled at the tick they happen. The discount is per high-level step; [`default_ppo`] sets
+//! it so that it matches the skills' `0.95` per half second.
+
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, RwLock};
+use std::time::Instant;
+
+use rand::Rng;
+use repertoire_curriculum::{Advance, ZoneCurriculum};
+use repertoire_humanoid::{HumanoidEnv, Task, TaskStep};
+use repertoire_latent::high::{LatentEnv, Z_BOUND};
+use repertoire_latent::model::LatentPolicy;
+use repertoire_learn::acting::ActingPolicy;
+use repertoire_learn::checkpoint;
+use repertoire_learn::env::{Env, EnvRng, MAX_TERMS, StepOutcome};
+use repertoire_learn::ppo::{IterationMetrics, Ppo, PpoConfig};
+use repertoire_learn::run_dir::{RunDir, git_hash};
+use repertoire_scenes::math::wrap_angle;
+use repertoire_scenes::{Feature, ObservationLayout, World, WorldModel};
+use repertoire_skill::library;
+use repertoire_skill::pool::Pool;
+use serde::{Deserialize, Serialize};
+
+use crate::error::{MetaError, Result};
+use crate::eval::{MetaReport, Trial};
+use crate::graph::SkillGraph;
+use crate::task::{EpisodeOverride, TaskSpec, TaskState};
+
+/// The scene, the task and the frozen latent model, shared by every latent meta environment.
+pub struct LatentSetup {
+    /// The scene.
+    pub model: Arc<WorldModel>,
+    /// The task: its props, reward, success and failure.
+    pub task: TaskSpec,
+    /// The high level's observation layout (proprioception and the task's props), before the
+    /// task's own values.
+    pub layout: Arc<ObservationLayout>,
+    /// The frozen latent model.
+    pub policy: LatentPolicy,
+    /// Its folder.
+    pub latent_dir: PathBuf,
+    /// Control ticks each `z` is held for (1: a new `z` every tick).
+    pub hold: usize,
+    /// Episode limit in control ticks.
+    pub max_ticks: u32,
+    /// Spawn zones episodes start in (the curriculum changes them between iterations).
+    pub zones: Arc<RwLock<Vec<String>>>,
+    /// Where episodes start: the start skill's successful end states; `None`: standing still.
+    pub start_pool: Option<Pool>,
+}
+
+impl LatentSetup {
+    /// The task of `model`'s scenario driven through the latent model in `latent_dir` (checked
+    /// to fit the body and rates), `z` held for `hold` ticks; episodes start in the end states
+    /// of the scenario's first start skill found in `library` (when it has them).
+    pub fn new(model: Arc<WorldModel>, latent_dir: &Path, library: &Path, hold: usize) -> Result<Self> {
+        let sc = model.scenario.scenario.clone();
+        let task = TaskSpec::of(&model)?;
+        if sc.spawn.is_empty() {
+            return Err(MetaError::Invalid(format!(
+                "{}: the latent high level needs at least one spawn zone (`spawn: [Zone(...)]`)",
+                model.scenario.path.display()
+            )));
+        }
+        if hold == 0 {
+            return Err(MetaError::Invalid("the latent high level must hold each z for at least 1 tick".into()));
+        }
+        if !latent_dir.join("latent.ron").is_file() {
+            return Err(MetaError::Invalid(format!(
+                "{}: low_level names the latent model {}, which has no latent.ron",
+                model.scenario.path.display(),
+                latent_dir.display()
+            )));
+        }
+        let policy = LatentPolicy::load(latent_dir)?;
+        policy.check_fits(&model, latent_dir)?;
+        let graph = SkillGraph::of(&sc);
+        let mut start_pool = None;
+        for (k, name) in graph.names().into_iter().enumerate() {
+            let path = library::skill_dir(library, name).join("end_poses.ron");
+            if graph.is_allowed(None, k) && path.exists() {
+                let pool = Pool::load(&path)?;
+                if !pool.states.is_empty() && pool.body_hash == model.body.content_hash() {
+                    start_pool = Some(pool);
+                    break;
+                }
+            }
+        }
+        let mut features = Feature::proprioception();
+        features.extend(task.features(&model));
+        let layout = Arc::new(ObservationLayout::new(&model, &features)?);
+        let time_limit_s = sc.task.time_limit_s();
+        let zones = sc.spawn.iter().map(|z| z.name.clone()).collect();
+        Ok(LatentSetup {
+            max_ticks: (time_limit_s * f64::from(sc.rates.control_hz)).round().max(1.0) as u32,
+            model,
+            task,
+            layout,
+            policy,
+            latent_dir: latent_dir.to_path_buf(),
+            hold,
+            zones: Arc::new(RwLock::new(zones)),
+            start_pool,
+        })
+    }
+
+    /// Observation width of the high level.
+    pub fn obs_dim(&self) -> usize {
+        self.layout.size + self.task.extra_dim()
+    }
+
+    /// Width of `z`.
+    pub fn latent_dim(&self) -> usize {
+        self.policy.latent_dim()
+    }
+
+    /// Control ticks per second.
+    pub fn control_hz(&self) -> f64 {
+        f64::from(self.model.scenario.scenario.rates.control_hz)
+    }
+
+    /// High-level steps per second.
+    pub fn steps_per_s(&self) -> f64 {
+        self.control_hz() / self.hold as f64
+    }
+}
+
+/// The task of a [`LatentSetup`] as a humanoid [`Task`]: starts, judges and rewards one
+/// control tick at a time.
+pub struct LatentTask {
+    setup: Arc<LatentSetup>,
+    state: TaskState,
+    over: EpisodeOverride,
+    reward_scale: f32,
+    /// Start pose of the current episode `(x, y, yaw)`.
+    pub start: (f64, f64, f64),
+    /// Zone of the current episode.
+    pub zone: String,
+}
+
+impl LatentTask {
+    /// A task over `setup`.
+    pub fn new(setup: Arc<LatentSetup>) -> Self {
+        let hz = setup.control_hz();
+        let reward_scale = match setup.task {
+            TaskSpec::Sit { .. } => (f64::from(setup.model.scenario.scenario.rates.meta_hz) / hz) as f32,
+            _ => 1.0,
+        };
+        LatentTask {
+            state: setup.task.new_state(hz),
+            over: EpisodeOverride::default(),
+            reward_scale,
+            start: (0.0, 0.0, 0.0),
+            zone: String::new(),
+            setup,
+        }
+    }
+
+    /// The task state of the current episode (the judges).
+    pub fn state(&self) -> &TaskState {
+        &self.state
+    }
+}
+
+impl Task for LatentTask {
+    fn term_names(&self) -> &[&'static str] {
+        self.setup.task.term_names()
+    }
+
+    fn extra_obs_dim(&self) -> usize {
+        self.setup.task.extra_dim()
+    }
+
+    fn observe_extra(&self, world: &World, out: &mut [f32]) {
+        self.state.observe(&self.setup.task, world, out);
+    }
+
+    fn reset(&mut self, world: &mut World, rng: &mut EnvRng) {
+        let zone = {
+            let zones = self.setup.zones.read().expect("the zone list is never poisoned");
+            zones[rng.random_range(0..zones.len())].clone()
+        };
+        self.start = world.reset_in_zone(&zone, rng).expect("zones come from the scenario");
+        if let Some((lx, ly, turn)) = self.over.start {
+            let f = world.placements()[self.setup.task.frame_prop()];
+            let (s, c) = f.yaw.sin_cos();
+            let (x, y) = (f.pos[0] + c * lx - s * ly, f.pos[1] + s * lx + c * ly);
+            let yaw = wrap_angle((f.pos[1] - y).atan2(f.pos[0] - x) + turn);
+            world.place_standing(x, y, yaw);
+            self.start = (x, y, yaw);
+        }
+        self.zone = zone;
+        let hz = self.setup.control_hz();
+        let moved = self.state.prepare(&self.setup.task, world, rng, hz, self.start, &self.over);
+        if moved {
+            let f = world.pelvis_frame();
+            self.start = (f.pos[0], f.pos[1], f.yaw());
+        }
+        if let Some(pool) = self.setup.start_pool.as_ref().filter(|_| !moved) {
+            let state = &pool.states[rng.random_range(0..pool.states.len())];
+            let (x, y, yaw) = self.start;
+            state.apply(world, x, y, yaw).expect("pool states are validated on load");
+        }
+        self.state.begin(&self.setup.task, world, rng, &self.over);
+    }
+
+    fn step(&mut self, world: &World, _action: &[f32]) -> TaskStep {
+        let dt = 1.0 / self.setup.control_hz();
+        let failed = self.state.tick(&self.setup.task, world, dt);
+        let fell = world.has_fallen() || !world.root_height().is_finite();
+        let success = self.state.succeeded();
+        let reward = self.state.decision_reward(&self.setup.task, world, fell, dt) * self.reward_scale;
+        let ended = (self.setup.task.ends_on_success() && success) || fell || failed;
+        // Written every tick: the learning core keeps the last tick's figures of an episode.
+        let mut terms = [0.0; MAX_TERMS];
+        terms[0] = f32::from(u8::from(success));
+        terms[2] = f32::from(u8::from(fell));
+        terms[3] = world.time() as f32;
+        self.state.terms(&mut terms);
+        TaskStep { reward: if reward.is_finite() { reward } else { 0.0 }, terminated: ended, truncated: false, terms }
+    }
+
+    fn snapshot(&self, out: &mut Vec<f64>) {
+        out.extend(self.state.snapshot());
+    }
+
+    fn restore(&mut self, state: &[f64]) -> std::result::Result<(), String> {
+        if state.len() != self.state.snapshot_len() {
+            return Err(format!(
+                "latent task snapshot has {} values, expected {}",
+                state.len(),
+                self.state.snapshot_len()
+            ));
+        }
+        self.state.restore(state);
+        Ok(())
+    }
+}
+
+/// One latent meta environment: the action is `z`, held for the setup's `hold` ticks (the
+/// rewards of those ticks summed).
+pub struct LatentMetaEnv {
+    env: LatentEnv<LatentTask>,
+    hold: usize,
+}
+
+impl LatentMetaEnv {
+    /// An environment over `setup`.
+    pub fn new(setup: &Arc<LatentSetup>) -> Result<Self> {
+        let inner = HumanoidEnv::with_layout(
+            &setup.model,
+            Arc::clone(&setup.layout),
+            LatentTask::new(Arc::clone(setup)),
+            setup.max_ticks,
+        );
+        let env = LatentEnv::new(inner, &setup.policy, &setup.latent_dir)?;
+        Ok(LatentMetaEnv { env, hold: setup.hold })
+    }
+
+    /// `n` environments over `setup`.
+    pub fn many(setup: &Arc<LatentSetup>, n: usize) -> Result<Vec<Self>> {
+        (0..n).map(|_| Self::new(setup)).collect()
+    }
+
+    /// The task of the current episode.
+    pub fn task(&self) -> &LatentTask {
+        self.env.inner().task()
+    }
+
+    /// The world.
+    pub fn world(&self) -> &World {
+        self.env.inner().world()
+    }
+
+    /// Makes the following episodes start as `over` says (evaluation grids).
+    pub fn set_override(&mut self, over: EpisodeOverride) {
+        self.env.inner_mut().task_mut().over = over;
+    }
+}
+
+impl Env for LatentMetaEnv {
+    fn obs_dim(&self) -> usize {
+        self.env.obs_dim()
+    }
+
+    fn act_dim(&self) -> usize {
+        self.env.act_dim()
+    }
+
+    fn action_bounds(&self) -> (&[f32], &[f32]) {
+        self.env.action_bounds()
+    }
+
+    fn term_names(&self) -> &[&'static str] {
+        self.env.term_names()
+    }
+
+    fn reset(&mut self, rng: &mut EnvRng, obs: &mut [f32]) {
+        self.env.reset(rng, obs);
+    }
+
+    fn step(&mut self, z: &[f32], obs: &mut [f32]) -> StepOutcome {
+        let mut reward = 0.0;
+        let mut out = StepOutcome::default();
+        for _ in 0..self.hold {
+            out = self.env.step(z, obs);
+            reward += out.reward;
+            if out.terminated || out.truncated {
+                break;
+            }
+        }
+        out.reward = reward;
+        out
+    }
+
+    fn snapshot(&self) -> Vec<f64> {
+        self.env.snapshot()
+    }
+
+    fn restore(&mut self, state: &[f64]) -> std::result::Result<(), String> {
+        self.env.restore(state)
+    }
+}
+
+/// What is recorded beside a trained latent high level (`latent_meta.ron`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LatentMetaManifest {
+    /// The scenario it was trained on.
+    pub scenario: String,
+    /// The latent model's folder, as given at training.
+    pub latent_model: String,
+    /// Its weights' checksum (`weights_fnv1a` of its `latent.ron`): a retrained model is refused.
+    pub latent_fnv1a: u64,
+    /// Width of `z`.
+    pub latent_dim: usize,
+    /// Control ticks each `z` is held.
+    pub hold: usize,
+    /// Body content hash.
+    pub body_hash: String,
+    /// Observation width.
+    pub obs_dim: usize,
+    /// PPO settings.
+    pub ppo: PpoConfig,
+    /// Iterations.
+    pub iterations: usize,
+    /// High-level steps taken.
+    pub samples: u64,
+    /// Wall-clock seconds.
+    pub seconds: f64,
+    /// Whether the zone curriculum was on.
+    pub curriculum: bool,
+    /// Zone switches.
+    pub advances: Vec<Advance>,
+    /// The command that trained it.
+    pub command: String,
+    /// Git commit.
+    pub git_hash: Option<String>,
+}
+
+/// File names of a trained latent high level.
+pub const MANIFEST_FILE: &str = "latent_meta.ron";
+/// The policy's weights beside [`MANIFEST_FILE`].
+pub const WEIGHTS_FILE: &str = "latent_meta.safetensors";
+
+/// PPO defaults for the latent high level: the skills' meta defaults with the discount per
+/// high-level step chosen so that it discounts `0.95` per half second as they do, a policy
+/// starting narrow around the prior's mean `z = 0`.
+pub fn default_ppo(setup: &LatentSetup) -> PpoConfig {
+    let steps_per_decision = setup.steps_per_s() / f64::from(setup.model.scenario.scenario.rates.meta_hz.max(1));
+    PpoConfig {
+        num_envs: 16,
+        num_steps: 64,
+        num_iterations: 200,
+        gamma: 0.95f32.powf(1.0 / steps_per_decision.max(1.0) as f32),
+        num_minibatches: 8,
+        update_epochs: 5,
+        learning_rate: 3e-4,
+        target_kl: Some(0.05),
+        policy: repertoire_learn::policy::PolicyConfig {
+            policy_hidden: vec![128, 128],
+            value_hidden: vec![128, 128],
+            init_log_std: -1.0,
+            learn_log_std: true,
+        },
+        ..PpoConfig::default()
+    }
+}
+
+/// Trains the latent high level of `setup` (zone curriculum as the skills' meta-controller);
+/// the policy and a manifest naming the latent model and its checksum go to `opts.out`.
+pub fn train(
+    setup: Arc<LatentSetup>,
+    opts: &crate::train::MetaTrainOptions,
+) -> Result<(LatentMetaManifest, Vec<IterationMetrics>)> {
+    let sc = &setup.model.scenario.scenario;
+    let mut curriculum = match (&sc.curriculum, opts.curriculum) {
+        (Some(c), true) => Some(ZoneCurriculum::new(c, true)),
+        _ => None,
+    };
+    if let Some(c) = &curriculum {
+        *setup.zones.write().expect("never poisoned") = c.open_zones().to_vec();
+    }
+    let envs = LatentMetaEnv::many(&setup, opts.ppo.num_envs)?;
+    let mut ppo = Ppo::new(opts.ppo.clone(), envs);
+    let io = |e| MetaError::Invalid(format!("{}: {e}", opts.run_dir.display()));
+    let mut run = RunDir::create(&opts.run_dir, &ppo.cfg).map_err(io)?;
+    let started = Instant::now();
+    let mut history = Vec::new();
+    while ppo.iteration < ppo.cfg.num_iterations {
+        let m = ppo.iterate();
+        run.log(&m).map_err(io)?;
+        if let Some(c) = &mut curriculum {
+            for e in &ppo.last_episodes {
+                if let Some(a) = c.record(e.terms[0] > 0.5) {
+                    tracing::info!(from = %a.from, to = %a.to, episode = a.episode, rate = a.success_rate, "curriculum advances");
+                    *setup.zones.write().expect("never poisoned") = c.open_zones().to_vec();
+                }
+            }
+        }
+        tracing::info!(
+            iteration = m.iteration,
+            mean_return = m.mean_return,
+            success = m.terms.first().map_or(f32::NAN, |t| t.1),
+            zone = curriculum.as_ref().map_or("all", |c| c.current()),
+            "latent meta iteration"
+        );
+        history.push(m);
+    }
+    let last = run.checkpoint_stem(ppo.iteration);
+    checkpoint::save(&mut ppo, &last).map_err(|e| MetaError::Invalid(e.to_string()))?;
+    std::fs::create_dir_all(&opts.out).map_err(|e| MetaError::Invalid(format!("{}: {e}", opts.out.display())))?;
+    let policy = ActingPolicy::from_ppo(&ppo);
+    policy.save(&opts.out.join(WEIGHTS_FILE)).map_err(|e| MetaError::Invalid(e.to_string()))?;
+    let manifest = LatentMetaManifest {
+        scenario: setup.model.scenario.path.display().to_string(),
+        latent_model: setup.latent_dir.display().to_string(),
+        latent_fnv1a: setup.policy.manifest.weights_fnv1a,
+        latent_dim: setup.latent_dim(),
+        hold: setup.hold,
+        body_hash: setup.model.body.content_hash(),
+        obs_dim: setup.obs_dim(),
+        ppo: ppo.cfg.clone(),
+        iterations: ppo.iteration,
+        samples: ppo.global_step,
+        seconds: started.elapsed().as_secs_f64(),
+        curriculum: curriculum.is_some(),
+        advances: curriculum.map(|c| c.history).unwrap_or_default(),
+        command: opts.command.clone(),
+        git_hash: git_hash(),
+    };
+    let text = ron::ser::to_string_pretty(&manifest, ron::ser::PrettyConfig::new().depth_limit(2))
+        .map_err(|e| MetaError::Invalid(e.to_string()))?;
+    library::write_atomic(&opts.out.join(MANIFEST_FILE), text.as_bytes())?;
+    Ok((manifest, history))
+}
+
+/// Reads the manifest of a trained latent high level in `dir` (its `hold` is needed to build
+/// the setup it is then checked against with [`load`]).
+pub fn read_manifest(dir: &Path) -> Result<LatentMetaManifest> {
+    let path = dir.join(MANIFEST_FILE);
+    let text = std::fs::read_to_string(&path).map_err(|e| MetaError::Invalid(format!("{}: {e}", path.display())))?;
+    ron::from_str(&text)
+        .map_err(|e| MetaError::Invalid(format!("{}:{}: {}", path.display(), e.span.start.line, e.code)))
+}
+
+/// Loads a trained latent high level from `dir` and checks it fits `setup`: the same latent
+/// model (checksum), body, observation width and `z` width.
+pub fn load(dir: &Path, setup: &LatentSetup) -> Result<(LatentMetaManifest, ActingPolicy)> {
+    let manifest = read_manifest(dir)?;
+    let path = dir.join(MANIFEST_FILE);
+    if manifest.latent_fnv1a != setup.policy.manifest.weights_fnv1a {
+        return Err(MetaError::Invalid(format!(
+            "{}: trained through the latent model {} (weights {:016x}); {} holds other weights ({:016x})",
+            path.display(),
+            manifest.latent_model,
+            manifest.latent_fnv1a,
+            setup.latent_dir.display(),
+            setup.policy.manifest.weights_fnv1a
+        )));
+    }
+    if manifest.body_hash != setup.model.body.content_hash()
+        || manifest.obs_dim != setup.obs_dim()
+        || manifest.latent_dim != setup.latent_dim()
+    {
+        return Err(MetaError::Invalid(format!(
+            "{}: trained on body {} with {} observations and z of {}; this scenario has body {}, {}, {}",
+            path.display(),
+            manifest.body_hash,
+            manifest.obs_dim,
+            manifest.latent_dim,
+            setup.model.body.content_hash(),
+            setup.obs_dim(),
+            setup.latent_dim()
+        )));
+    }
+    let weights = dir.join(WEIGHTS_FILE);
+    let policy = ActingPolicy::load(&weights).map_err(|e| MetaError::Invalid(format!("{}: {e}", weights.display())))?;
+    if policy.obs_dim() != setup.obs_dim() || policy.act_dim() != setup.latent_dim() {
+        return Err(MetaError::Invalid(format!(
+            "{}: the policy reads {} values and writes {}, the manifest says {} and {}",
+            weights.display(),
+            policy.obs_dim(),
+            policy.act_dim(),
+            setup.obs_dim(),
+            setup.latent_dim()
+        )));
+    }
+    Ok((manifest, policy))
+}
+
+/// Runs `trials` sitting trials per zone in `zones` with the latent high level `policy`
+/// (acting by its mean), `batch` at a time, each seeded as the skills' evaluation seeds its
+/// trials: the same [`MetaReport`] (success and minimum distance per zone; no skill
+/// transitions).
+pub fn evaluate(
+    setup: &Arc<LatentSetup>,
+    policy: &ActingPolicy,
+    zones: &[String],
+    trials: usize,
+    batch: usize,
+    seed: u64,
+) -> Result<MetaReport> {
+    use rand::SeedableRng;
+    if !matches!(setup.task, TaskSpec::Sit { .. }) {
+        return Err(MetaError::Invalid(format!(
+            "{}: the latent high level is evaluated on sitting only (this is a {} scenario)",
+            setup.model.scenario.path.display(),
+            setup.task.name()
+        )));
+    }
+    for z in zones {
+        if !setup.model.scenario.scenario.spawn.iter().any(|s| &s.name == z) {
+            return Err(MetaError::Invalid(format!("no spawn zone `{z}` in {}", setup.model.scenario.path.display())));
+        }
+    }
+    let b = batch.clamp(1, trials.max(1));
+    let mut envs = LatentMetaEnv::many(setup, b)?;
+    let (od, ad) = (setup.obs_dim(), setup.latent_dim());
+    let mut all = Vec::new();
+    for (zi, zone) in zones.iter().enumerate() {
+        *setup.zones.write().expect("never poisoned") = vec![zone.clone()];
+        let mut obs = vec![0.0f32; b * od];
+        let mut z = vec![0.0f32; b * ad];
+        let mut slot: Vec<Option<usize>> = vec![None; b];
+        let mut next = 0usize;
+        let start = |env: &mut LatentMetaEnv, o: &mut [f32], i: usize| {
+            let mut rng = EnvRng::seed_from_u64(seed);
+            rng.set_stream((zi * trials + i) as u64 + 1);
+            env.reset(&mut rng, o);
+        };
+        for (k, env) in envs.iter_mut().enumerate() {
+            if next < trials {
+                start(env, &mut obs[k * od..(k + 1) * od], next);
+                slot[k] = Some(next);
+                next += 1;
+            }
+        }
+        let mut policy = policy.clone();
+        while slot.iter().any(Option::is_some) {
+            policy.act(&obs, &mut z);
+            for v in &mut z {
+                *v = if v.is_finite() { v.clamp(-Z_BOUND, Z_BOUND) } else { 0.0 };
+            }
+            for k in 0..b {
+                let Some(i) = slot[k] else { continue };
+                let out = envs[k].step(&z[k * ad..(k + 1) * ad], &mut obs[k * od..(k + 1) * od]);
+                if out.terminated || out.truncated {
+                    all.push(trial_of(setup, &envs[k], i, zone, &out.terms));
+                    if next < trials {
+                        start(&mut envs[k], &mut obs[k * od..(k + 1) * od], next);
+                        slot[k] = Some(next);
+                        next += 1;
+                    } else {
+                        slot[k] = None;
+                    }
+                }
+            }
+        }
+    }
+    // Trials finish out of order; the report lists them zone by zone, by index.
+    all.sort_by_key(|t| (zones.iter().position(|z| *z == t.zone), t.index));
+    Ok(crate::eval::report(zones, Vec::new(), all))
+}
+
+fn trial_of(setup: &LatentSetup, env: &LatentMetaEnv, index: usize, zone: &str, terms: &[f32]) -> Trial {
+    let chair = env.world().placements()[setup.task.frame_prop()];
+    let (x, y, _) = env.task().start;
+    let (s, c) = chair.yaw.sin_cos();
+    let local_x = c * (x - chair.pos[0]) + s * (y - chair.pos[1]);
+    let local_y = -s * (x - chair.pos[0]) + c * (y - chair.pos[1]);
+    Trial {
+        index,
+        zone: zone.to_string(),
+        start: env.task().start,
+        local_start: (local_x, local_y),
+        side: if local_y >= 0.0 { "left".into() } else { "right".into() },
+        success: terms[0] > 0.5,
+        fell: terms[2] > 0.5,
+        min_distance: f64::from(terms[1]),
+        seconds: f64::from(terms[3]),
+        skills: Vec::new(),
+    }
+}
