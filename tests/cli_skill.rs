@@ -120,7 +120,7 @@ fn the_ablation_study_plans_one_described_run_per_variant_and_seed() {
     let dir = common::temp_dir("cli-ablate");
     let spec = Path::new(env!("CARGO_MANIFEST_DIR")).join("meta/ablations/sit.ron");
     let text = ok(&repertoire(&["ablate", spec.to_str().unwrap(), "--plan-only", "--out", dir.to_str().unwrap()]));
-    assert!(text.contains("21 runs planned"), "{text}");
+    assert!(text.contains("24 runs planned"), "{text}");
     let plan = std::fs::read_to_string(dir.join("runs/flat--the-sit-policy-alone-s1/plan.ron")).expect("plan file");
     assert!(plan.contains("\"--chain\"") && plan.contains("\"sit\""), "{plan}");
     // The budget can be overridden for a quick pass.
@@ -136,7 +136,7 @@ fn the_ablation_study_plans_one_described_run_per_variant_and_seed() {
         "--iterations",
         "5",
     ]));
-    assert!(text.contains("7 runs planned"), "{text}");
+    assert!(text.contains("8 runs planned"), "{text}");
     let plan = std::fs::read_to_string(quick.join("runs/full-model-s7/plan.ron")).expect("plan file");
     let compact: String = plan.split_whitespace().collect();
     assert!(compact.contains("\"--iterations\",\"5\"") && compact.contains("\"--seed\",\"7\""), "{plan}");

@@ -30,6 +30,10 @@ pub struct Variant {
     /// Use the zone curriculum.
     #[serde(default = "yes")]
     pub curriculum: bool,
+    /// Drive this latent model's decoder instead of the skills (`meta train --latent`; the
+    /// skills' `chain`/`skills` do not apply then).
+    #[serde(default)]
+    pub low_level: Option<String>,
 }
 
 fn yes() -> bool {
@@ -88,6 +92,9 @@ pub fn plan(ab: &Ablation, spec_dir: &Path, out: &Path) -> Vec<Plan> {
                 common.push(spec_dir.join(s).display().to_string());
             }
             common.extend(["--library".into(), v.library.clone().unwrap_or_else(|| ab.library.clone())]);
+            if let Some(latent) = &v.low_level {
+                common.extend(["--latent".into(), latent.clone()]);
+            }
             if !v.chain.is_empty() {
                 common.extend(["--chain".into(), v.chain.join(",")]);
             }
@@ -148,6 +155,14 @@ pub fn run(spec: &Path, out: &Path, plan_only: bool, overrides: &Overrides) -> R
     ab.trials = overrides.trials.unwrap_or(ab.trials);
     if ab.seeds.is_empty() || ab.variants.is_empty() {
         bail!("{}: an ablation needs at least one seed and one variant", spec.display());
+    }
+    if let Some(v) = ab.variants.iter().find(|v| v.low_level.is_some() && (!v.chain.is_empty() || !v.skills.is_empty()))
+    {
+        bail!(
+            "{}: variant `{}` drives a latent low level, so it cannot also restrict the skills (`chain`, `skills`)",
+            spec.display(),
+            v.name
+        );
     }
     let plans = plan(&ab, spec.parent().unwrap_or(Path::new(".")), out);
     let exe = std::env::current_exe().context("locating the repertoire binary")?;

@@ -156,6 +156,7 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
             hold,
         } => {
             if let Some((model, dir)) = latent_low_level(file.as_ref(), latent)? {
+                no_skill_options(&chain, &skills)?;
                 let args = LatentTrain { library, out, run_dir, iterations, envs, seed, no_curriculum, hold, command };
                 return train_latent(model, &dir, args);
             }
@@ -215,6 +216,7 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
             latent,
         } => {
             if let Some((model, dir)) = latent_low_level(file.as_ref(), latent)? {
+                no_skill_options(&chain, &skills)?;
                 let zones = if zones.is_empty() {
                     model.scenario.scenario.spawn.iter().map(|z| z.name.clone()).collect()
                 } else {
@@ -284,6 +286,14 @@ fn latent_low_level(file: Option<&PathBuf>, flag: Option<PathBuf>) -> Result<Opt
         return Ok(None);
     };
     Ok(Some((Arc::new(WorldModel::build(scenario)?), dir)))
+}
+
+/// The skills' graph options mean nothing to a latent low level: refused rather than ignored.
+fn no_skill_options(chain: &[String], skills: &[String]) -> Result<()> {
+    if !chain.is_empty() || !skills.is_empty() {
+        anyhow::bail!("--chain and --skills restrict the skill graph; a latent low level has none");
+    }
+    Ok(())
 }
 
 /// Where a latent high level goes when no `--out`/`--meta` is given:
