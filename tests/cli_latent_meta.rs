@@ -82,6 +82,21 @@ fn a_latent_high_level_trains_and_evaluates_on_the_sitting_scenario() {
     assert!(manifest.contains("latent_fnv1a") && manifest.contains("skills/library/latent"), "{manifest}");
     let metrics = std::fs::read_to_string(dir.join("run/metrics.csv")).unwrap();
     assert_eq!(metrics.lines().count(), 3, "{metrics}");
+    // The per-episode figures are the episodes' (the learning core sums terms over an episode):
+    // at most the 20 s limit, a minimum distance no larger than a start 2.5 m from the chair.
+    let header: Vec<&str> = metrics.lines().next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let (seconds, min_d) = (col("term_seconds"), col("term_min_distance"));
+    let mut ended = 0;
+    for line in metrics.lines().skip(1) {
+        let v: Vec<f64> = line.split(',').map(|x| x.parse().unwrap_or(f64::NAN)).collect();
+        if v[seconds].is_finite() {
+            ended += 1;
+            assert!(v[seconds] > 0.0 && v[seconds] <= 20.0 + 1e-6, "{line}");
+            assert!(v[min_d] > 0.0 && v[min_d] < 3.5, "{line}");
+        }
+    }
+    assert!(ended > 0, "no episode ended in two iterations: {metrics}");
 
     let out = dir.join("eval");
     let text = ok(&repertoire(&[
@@ -138,6 +153,26 @@ fn a_latent_high_level_trains_and_evaluates_on_the_sitting_scenario() {
     assert!(!res.status.success());
     let err = String::from_utf8_lossy(&res.stderr);
     assert!(err.contains("latent_meta.ron") && err.contains("other weights"), "{err}");
+    // z held for several ticks: recorded, and read back by the evaluation.
+    let held = dir.join("held");
+    let args = ["--iterations", "1", "--envs", "2", "--hold", "3", "--out", held.to_str().unwrap()];
+    let run = dir.join("run-held");
+    ok(&repertoire(
+        &[&["meta", "train", scenario.to_str().unwrap(), "--run-dir", run.to_str().unwrap()], &args[..]].concat(),
+    ));
+    assert!(std::fs::read_to_string(held.join("latent_meta.ron")).unwrap().contains("hold: 3"));
+    let text = ok(&repertoire(&[
+        "meta",
+        "eval",
+        scenario.to_str().unwrap(),
+        "--meta",
+        held.to_str().unwrap(),
+        "--trials",
+        "1",
+        "--zones",
+        "front",
+    ]));
+    assert!(text.contains("| front | 1 |") && held.join("eval/report.json").exists(), "{text}");
     // Skill-graph options make no sense through a latent space.
     let res = repertoire(&["meta", "train", scenario.to_str().unwrap(), "--chain", "walk,sit", "--iterations", "1"]);
     assert!(!res.status.success());

@@ -148,6 +148,7 @@ pub struct LatentTask {
     state: TaskState,
     over: EpisodeOverride,
     reward_scale: f32,
+    ticks: u32,
     /// Start pose of the current episode `(x, y, yaw)`.
     pub start: (f64, f64, f64),
     /// Zone of the current episode.
@@ -166,6 +167,7 @@ impl LatentTask {
             state: setup.task.new_state(hz),
             over: EpisodeOverride::default(),
             reward_scale,
+            ticks: 0,
             start: (0.0, 0.0, 0.0),
             zone: String::new(),
             setup,
@@ -206,6 +208,7 @@ impl Task for LatentTask {
             self.start = (x, y, yaw);
         }
         self.zone = zone;
+        self.ticks = 0;
         let hz = self.setup.control_hz();
         let moved = self.state.prepare(&self.setup.task, world, rng, hz, self.start, &self.over);
         if moved {
@@ -222,18 +225,24 @@ impl Task for LatentTask {
 
     fn step(&mut self, world: &World, _action: &[f32]) -> TaskStep {
         let dt = 1.0 / self.setup.control_hz();
+        self.ticks += 1;
         let failed = self.state.tick(&self.setup.task, world, dt);
         let fell = world.has_fallen() || !world.root_height().is_finite();
         let success = self.state.succeeded();
         let reward = self.state.decision_reward(&self.setup.task, world, fell, dt) * self.reward_scale;
         let ended = (self.setup.task.ends_on_success() && success) || fell || failed;
-        // Written every tick: the learning core keeps the last tick's figures of an episode.
+        let truncated = !ended && self.ticks >= self.setup.max_ticks;
+        // The per-episode figures, on the last tick only (the learning core sums terms over an
+        // episode).
         let mut terms = [0.0; MAX_TERMS];
-        terms[0] = f32::from(u8::from(success));
-        terms[2] = f32::from(u8::from(fell));
-        terms[3] = world.time() as f32;
-        self.state.terms(&mut terms);
-        TaskStep { reward: if reward.is_finite() { reward } else { 0.0 }, terminated: ended, truncated: false, terms }
+        if ended || truncated {
+            terms[0] = f32::from(u8::from(success));
+            terms[2] = f32::from(u8::from(fell));
+            // Seconds since the episode's start, counted (a diverged world's clock is not read).
+            terms[3] = (f64::from(self.ticks) * dt) as f32;
+            self.state.terms(&mut terms);
+        }
+        TaskStep { reward: if reward.is_finite() { reward } else { 0.0 }, terminated: ended, truncated, terms }
     }
 
     fn snapshot(&self, out: &mut Vec<f64>) {
