@@ -277,3 +277,25 @@ fn a_tiny_catch_training_runs_end_to_end() {
     let skill = library::load(&lib, "catch").expect("load");
     skill.check_fits(&s.model).expect("fits its scene");
 }
+
+#[test]
+fn mocap_variants_parse_and_build_where_the_mocap_is() {
+    for spec in ["lift_115_06.ron", "carry_113_26.ron"] {
+        let file = SpecFile::load(&specs().join(spec)).expect("the variant parses");
+        let clip = file.resolve(&file.spec.clip.file);
+        if !clip.exists() {
+            eprintln!("{spec}: {} is not here (no ../shared mocap); only parsed", clip.display());
+            continue;
+        }
+        let s = SkillSetup::new(file, &temp("mocap")).expect("the variant builds on the real mocap");
+        let obj = s.settings.object.clone().expect("object");
+        let mut env = s.env();
+        let mut task = ImitationTask::new(s.settings.clone());
+        let f = obj.held.start + 5;
+        task.place_at_frame(env.world_mut(), f, 0.0, 0.0, 0.0);
+        let (c, hands) = object_and_hands(env.world(), obj.prop);
+        assert!(dist(c, hands) < 0.01, "{spec}: held frame {f} starts with the box in the hands");
+        let out = task.score(env.world(), f);
+        assert!(out.terms[0] > 0.999 && !out.terminated, "{spec}: {:?}", out.terms);
+    }
+}
