@@ -229,6 +229,9 @@ fn catch_throws_the_ball_at_the_hands_and_ends_when_it_lands() {
     w.restore(&snap).unwrap();
     let (ball0, _) = object_and_hands(&w, obj.prop);
     assert!(ball0[0] > 1.0, "the ball starts in front: {ball0:?}");
+    // The policy sees it coming: towards the character at the drawn speed (2–4 m/s), rising.
+    let v = w.prop_velocity_relative(obj.prop);
+    assert!((-4.1..-1.9).contains(&v[0]) && v[1].abs() < 0.3 && v[2] > 0.0, "ball velocity {v:?}");
     let target = [r.hands[c][0] - r.root_pos[0][0], r.hands[c][1] - r.root_pos[0][1], r.hands[c][2]];
     let ctrl = r.joints_at(0).to_vec();
     let mut closest = f64::INFINITY;
