@@ -88,7 +88,7 @@ fn bad_object_props_are_refused_with_the_spec_named() {
     assert!(err.contains("lift.ron") && err.contains("lift_m"), "{err}");
     let path = specs().join("catch.ron");
     let text = std::fs::read_to_string(&path).unwrap();
-    let bad = text.replace("v_x: (1.5, 3.0)", "v_x: (-1.5, 3.0)");
+    let bad = text.replace("v_x: (2.0, 4.0)", "v_x: (-2.0, 4.0)");
     let err = SpecFile::parse(&path, &bad).expect_err("negative throw speed").to_string();
     assert!(err.contains("catch.ron") && err.contains("v_x"), "{err}");
     let path = specs().join("carry.ron");
@@ -229,9 +229,9 @@ fn catch_throws_the_ball_at_the_hands_and_ends_when_it_lands() {
     w.restore(&snap).unwrap();
     let (ball0, _) = object_and_hands(&w, obj.prop);
     assert!(ball0[0] > 1.0, "the ball starts in front: {ball0:?}");
-    // The policy sees it coming: towards the character at the drawn speed (1.5–3 m/s), rising.
+    // The policy sees it coming: towards the character at the drawn speed (2–4 m/s), rising.
     let v = w.prop_velocity_relative(obj.prop);
-    assert!((-3.1..-1.4).contains(&v[0]) && v[1].abs() < 0.3 && v[2] > 0.0, "ball velocity {v:?}");
+    assert!((-4.1..-1.9).contains(&v[0]) && v[1].abs() < 0.3 && v[2] > 0.0, "ball velocity {v:?}");
     let target = [r.hands[c][0] - r.root_pos[0][0], r.hands[c][1] - r.root_pos[0][1], r.hands[c][2]];
     let ctrl = r.joints_at(0).to_vec();
     let mut closest = f64::INFINITY;
