@@ -5,7 +5,7 @@
 //! world whose layout differs.
 
 use crate::error::{Result, SceneError};
-use crate::world::{World, WorldModel};
+use crate::world::{PropMount, World, WorldModel};
 use serde::{Deserialize, Serialize};
 
 /// One named group of observation values.
@@ -27,6 +27,9 @@ pub enum Feature {
     FootContacts,
     /// A prop's pose relative to the pelvis in the heading frame: dx, dy, dz, sin Δyaw, cos Δyaw.
     PropPose(String),
+    /// A prop's linear velocity relative to the pelvis's, in the heading frame (m/s; forward,
+    /// left, up): a ball in flight. Fixed props move with nothing, so theirs is minus the pelvis's.
+    PropVelocity(String),
 }
 
 impl Feature {
@@ -41,6 +44,7 @@ impl Feature {
             Feature::RootAngularVelocity => "root_angular_velocity".into(),
             Feature::FootContacts => "foot_contacts".into(),
             Feature::PropPose(p) => format!("prop_pose:{p}"),
+            Feature::PropVelocity(p) => format!("prop_velocity:{p}"),
         }
     }
 
@@ -96,15 +100,16 @@ impl ObservationLayout {
                 Feature::RootVelocity | Feature::RootAngularVelocity => 3,
                 Feature::PitchRoll => 2,
                 Feature::FootContacts => model.index.foot_touch.len(),
-                Feature::PropPose(name) => {
+                Feature::PropPose(name) | Feature::PropVelocity(name) => {
                     let id = model.prop_id(name).ok_or_else(|| {
                         SceneError::Usage(format!(
-                            "observation feature prop_pose:{name}: no prop `{name}` in {}",
+                            "observation feature {}: no prop `{name}` in {}",
+                            f.name(),
                             model.scenario.path.display()
                         ))
                     })?;
                     prop_ids.push(id);
-                    5
+                    if matches!(f, Feature::PropPose(_)) { 5 } else { 3 }
                 }
             };
             entries.push(LayoutEntry { name: f.name(), offset, len });
@@ -136,6 +141,20 @@ impl ObservationLayout {
 }
 
 impl World {
+    /// A prop's linear velocity relative to the pelvis's, in the heading frame (forward, left,
+    /// up; m/s). Fixed props do not move.
+    pub fn prop_velocity_relative(&self, prop: usize) -> [f64; 3] {
+        let qvel = self.data().qvel();
+        let prop_v = match self.model().props[prop].mount {
+            PropMount::Fixed { .. } => [0.0; 3],
+            PropMount::Free { dof, .. } => [qvel[dof], qvel[dof + 1], qvel[dof + 2]],
+        };
+        let d = self.model().index.root_dof;
+        let v = [prop_v[0] - qvel[d], prop_v[1] - qvel[d + 1], prop_v[2] - qvel[d + 2]];
+        let (s, c) = self.heading().sin_cos();
+        [c * v[0] + s * v[1], -s * v[0] + c * v[1], v[2]]
+    }
+
     /// Writes the observation described by `layout` into `out` (length `layout.size`).
     pub fn observe(&self, layout: &ObservationLayout, out: &mut [f32]) {
         debug_assert_eq!(out.len(), layout.size);
@@ -180,6 +199,12 @@ impl World {
                 Feature::PropPose(_) => {
                     let id = *props.next().expect("one id per prop feature");
                     for (o, v) in dst.iter_mut().zip(self.prop_relative(id)) {
+                        *o = v as f32;
+                    }
+                }
+                Feature::PropVelocity(_) => {
+                    let id = *props.next().expect("one id per prop feature");
+                    for (o, v) in dst.iter_mut().zip(self.prop_velocity_relative(id)) {
                         *o = v as f32;
                     }
                 }

@@ -267,11 +267,12 @@ fn play_cmd(
     played.recording.save(record)?;
     let size = std::fs::metadata(record).map(|m| m.len()).unwrap_or(0);
     println!(
-        "{name}: {} steps ({:.2} s), {}{}, return {:.2}; recorded to {} ({:.2} MB)",
+        "{name}: {} steps ({:.2} s), {}{}{}, return {:.2}; recorded to {} ({:.2} MB)",
         played.steps,
         f64::from(played.steps) * setup.model.control_dt(),
-        if played.fell { "fell" } else { "did not fall" },
+        if played.fell { "fell or dropped its object" } else { "did not fall" },
         if played.on_seat { ", on the seat" } else { "" },
+        if played.object_done { ", object goal reached" } else { "" },
         played.episode_return,
         record.display(),
         size as f64 / 1e6

@@ -37,9 +37,10 @@ pub struct EvalReport {
     /// Trials run.
     pub trials: usize,
     /// Trials that reached the end of the clip (or the time limit) without falling and, for
-    /// sit, with the pelvis on the seat.
+    /// sit, with the pelvis on the seat; for object goals, with the object's state reached
+    /// (box raised, held, put down and released, ball caught).
     pub successes: usize,
-    /// Trials that ended in a fall.
+    /// Trials that ended in a fall (or, for object goals, with the object on the floor).
     pub falls: usize,
     /// `successes / trials`.
     pub success_rate: f64,
@@ -112,13 +113,7 @@ pub fn evaluate(
 
     let max_reward_per_step = {
         let im = &settings.imitation;
-        let goal = match settings.goal {
-            Goal::None => 0.0,
-            Goal::RootVelocity { weight, .. }
-            | Goal::Heading { weight, .. }
-            | Goal::Target { weight, .. }
-            | Goal::Seat { weight, .. } => weight,
-        };
+        let goal = settings.goal.weight();
         f64::from(im.pose.weight + im.velocity.weight + im.end_effector.weight + im.root.weight + goal)
     };
     let frames = settings.reference.frames() as u32;
@@ -175,7 +170,13 @@ pub fn evaluate(
             let env = &mut envs[i];
             let len = env.steps();
             let on_seat = out.terms[5] > 0.5;
-            let success = !out.terminated && (!matches!(settings.goal, Goal::Seat { .. }) || on_seat);
+            let object_done = out.terms[6] > 0.5;
+            let success = !out.terminated
+                && match settings.goal {
+                    Goal::Seat { .. } => on_seat,
+                    _ if settings.goal.object().is_some() => object_done,
+                    _ => true,
+                };
             report.trials += 1;
             report.falls += usize::from(out.terminated);
             report.successes += usize::from(success);

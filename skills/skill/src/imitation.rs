@@ -16,10 +16,28 @@ use crate::pool::{Pool, PoolState};
 use crate::quat::{mul, rotate_z, yaw_quat};
 use crate::reference::{END_EFFECTORS, Reference, local_end_effectors, to_heading};
 use crate::spec::{Goal, Imitation, Init, Termination};
+use repertoire_scenes::ThrowSpec;
 
 /// Names of the reward terms and metrics each step reports (unweighted similarities in [0, 1],
-/// then the goal term, then whether the pelvis is on the seat).
-pub const TERM_NAMES: [&str; 6] = ["pose", "velocity", "end_effector", "root", "goal", "on_seat"];
+/// then the goal term, whether the pelvis is on the seat, and whether an object goal's state is
+/// reached: box raised, held, put down and released, ball caught).
+pub const TERM_NAMES: [&str; 7] = ["pose", "velocity", "end_effector", "root", "goal", "on_seat", "object"];
+
+/// An object goal's props and clip frames (lift, carry, put down, catch).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ObjectSetup {
+    /// The box or ball (a free prop).
+    pub prop: usize,
+    /// The pedestal and the reference frame under whose hands it stands.
+    pub pedestal: Option<(usize, usize)>,
+    /// For catch: the frame at which the ball reaches the hands.
+    pub catch_frame: Option<usize>,
+    /// Reference frames in which the clip holds the object: episodes starting in them start
+    /// with it between the hands.
+    pub held: std::ops::Range<usize>,
+    /// Half the box's height or the ball's radius before the episode's scale (m).
+    pub half: f64,
+}
 
 /// Everything about a skill's task that does not change between episodes; shared by all envs.
 #[derive(Debug, Clone)]
@@ -39,6 +57,8 @@ pub struct TaskSettings {
     /// For [`Goal::Seat`]: the chair's prop index and its pose relative to the clip, as
     /// `(x, y, yaw)` in the clip's world.
     pub seat: Option<(usize, [f64; 3])>,
+    /// For object goals: the box or ball, the pedestal, and the frames that hold it.
+    pub object: Option<ObjectSetup>,
 }
 
 /// The imitation task of one environment.
@@ -163,6 +183,105 @@ impl ImitationTask {
         }
     }
 
+    /// Object-aware start: stands the pedestal under the clip's hands at its frame, then puts
+    /// the box or ball between the hands when the start frame holds it, else on the pedestal,
+    /// else (catch) throws it to arrive at the hands when the clip catches it.
+    fn place_object(&self, world: &mut World, rng: &mut EnvRng) {
+        let settings = Arc::clone(&self.settings);
+        let Some(obj) = &settings.object else { return };
+        let r = &settings.reference;
+        let f = self.phase.min(r.frames() - 1);
+        let half = obj.half * world.placements()[obj.prop].scale;
+        let at = |g: usize| {
+            let h = r.hands[g];
+            let [x, y] = self.to_world([h[0], h[1]]);
+            ([x, y, h[2]], wrap_angle(r.heading[g] + self.yaw))
+        };
+        if let Some((ped, g)) = obj.pedestal {
+            let (p, yaw) = at(g);
+            world.move_prop(ped, p[0], p[1], yaw).expect("the pedestal is validated");
+        }
+        let (still, zero) = ([1.0, 0.0, 0.0, 0.0], [0.0; 3]);
+        if obj.held.contains(&f) {
+            // Between the body's own hands (a pool state's may differ from the reference's).
+            let idx = &world.model().index;
+            let [l, rt] = [world.body_position(idx.hands[0]), world.body_position(idx.hands[1])];
+            let p = std::array::from_fn(|k| 0.5 * (l[k] + rt[k]));
+            let yaw = world.heading();
+            let (a, b) = if f + 1 < r.frames() { (f, f + 1) } else { (f.saturating_sub(1), f) };
+            let v = if b > a {
+                let d = std::array::from_fn(|k| (r.hands[b][k] - r.hands[a][k]) / r.dt);
+                rotate_z(self.yaw, d)
+            } else {
+                zero
+            };
+            world.set_free_prop(obj.prop, p, yaw_quat(yaw), v, zero).expect("the object is a validated free prop");
+        } else if let Some((ped, _)) = obj.pedestal {
+            let pl = world.placements()[ped];
+            world
+                .set_free_prop(obj.prop, [pl.pos[0], pl.pos[1], pl.top + half], yaw_quat(pl.yaw), zero, zero)
+                .expect("the object is a validated free prop");
+        } else if let (Some(c), Goal::Catch { throw, .. }) = (obj.catch_frame, &settings.goal) {
+            let (target, yaw) = at(c);
+            let flight = c.saturating_sub(f).max(1) as f64 * r.dt;
+            let throw = catch_throw(throw, target, yaw, flight, rng);
+            throw.launch(world, obj.prop).expect("catch throws are validated");
+        } else {
+            world.set_free_prop(obj.prop, at(f).0, still, zero, zero).expect("the object is a validated free prop");
+        }
+    }
+
+    /// An object goal's term in [0, 1], whether its state is reached, and whether the object
+    /// touches the floor (which ends the episode).
+    fn object_goal(&self, world: &World, contacts: &repertoire_scenes::Contacts, f: usize) -> (f32, bool, bool) {
+        let settings = &self.settings;
+        let Some(obj) = &settings.object else { return (0.0, false, false) };
+        let model = world.model();
+        let idx = &model.index;
+        let [l, rt] = [world.body_position(idx.hands[0]), world.body_position(idx.hands[1])];
+        let mid: [f64; 3] = std::array::from_fn(|k| 0.5 * (l[k] + rt[k]));
+        let c = world.body_frame(model.props[obj.prop].body).pos;
+        let dist = |a: [f64; 3], b: [f64; 3]| (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>().sqrt();
+        let d = dist(c, mid);
+        let on = contacts.hands_on_prop(obj.prop);
+        let hands_on = usize::from(on[0]) + usize::from(on[1]);
+        let dropped = contacts.prop_on_floor(obj.prop);
+        let hold = |scale: f64| 0.5 * similarity(scale, d * d) + 0.25 * hands_on as f32;
+        let half = obj.half * world.placements()[obj.prop].scale;
+        match &settings.goal {
+            Goal::Lift { lift_m, scale, .. } => {
+                let top = obj.pedestal.map_or(0.0, |(p, _)| world.placements()[p].top);
+                let raised = c[2] - half - top;
+                let raise = if hands_on > 0 && !dropped { (raised / lift_m).clamp(0.0, 1.0) as f32 } else { 0.0 };
+                (0.5 * hold(*scale) + 0.5 * raise, raised >= 0.8 * lift_m && hands_on > 0 && !dropped, dropped)
+            }
+            Goal::Carry { scale, speed_scale, .. } => {
+                let v = world.root_velocity_heading();
+                let e = (v[0] - settings.reference.velocity[f][0]).powi(2)
+                    + (v[1] - settings.reference.velocity[f][1]).powi(2);
+                let goal = 0.6 * hold(*scale) + 0.4 * similarity(*speed_scale, e);
+                (goal, hands_on > 0 && d < 0.2 && !dropped, dropped)
+            }
+            Goal::PutDown { scale, .. } => {
+                let Some((ped, _)) = obj.pedestal else { return (0.0, false, dropped) };
+                let pl = world.placements()[ped];
+                let resting = world.prop_contact_count(obj.prop, ped) >= 4;
+                if resting {
+                    let released = hands_on == 0;
+                    (if released { 1.0 } else { 0.5 }, released && !dropped, dropped)
+                } else {
+                    let e = dist(c, [pl.pos[0], pl.pos[1], pl.top + half]);
+                    (0.5 * similarity(*scale, e * e), false, dropped)
+                }
+            }
+            Goal::Catch { scale, .. } => {
+                let goal = if dropped { 0.0 } else { hold(*scale) };
+                (goal, !dropped && (hands_on > 0 || d < 0.2), dropped)
+            }
+            _ => (0.0, false, false),
+        }
+    }
+
     /// Distance from the pelvis to the seat centre (or to the walk target), for the goal.
     fn goal_distance(&self, world: &World) -> f64 {
         let p = world.pelvis_frame().pos;
@@ -191,6 +310,8 @@ impl ImitationTask {
         self.place_reference(world, f, x, y, heading);
         self.seat_offset = [0.0; 3];
         self.place_seat(world);
+        // A fixed stream: a throw drawn here is the same on every call.
+        self.place_object(world, &mut <EnvRng as rand::SeedableRng>::seed_from_u64(f as u64));
         self.start_frame = f;
         self.start_heading = world.heading();
         self.cycles = 0;
@@ -277,6 +398,7 @@ impl ImitationTask {
 
         let contacts = world.contacts();
         let on_seat = settings.seat.is_some_and(|(p, _)| contacts.pelvis_on_prop(p));
+        let object = self.object_goal(world, &contacts, f);
         let goal = match &settings.goal {
             Goal::None => 0.0,
             Goal::RootVelocity { scale, .. } => {
@@ -297,14 +419,9 @@ impl ImitationTask {
                 self.last_distance = d;
                 if on_seat { 1.0 } else { (1.0 / (1.0 + (10.0 * speed).exp())) as f32 }
             }
+            Goal::Lift { .. } | Goal::Carry { .. } | Goal::PutDown { .. } | Goal::Catch { .. } => object.0,
         };
-        let goal_weight = match settings.goal {
-            Goal::None => 0.0,
-            Goal::RootVelocity { weight, .. }
-            | Goal::Heading { weight, .. }
-            | Goal::Target { weight, .. }
-            | Goal::Seat { weight, .. } => weight,
-        };
+        let goal_weight = settings.goal.weight();
 
         let mut terms = [0.0; MAX_TERMS];
         terms[0] = similarity(im.pose.scale, pose_err);
@@ -313,8 +430,10 @@ impl ImitationTask {
         terms[3] = similarity(im.root.scale, root_err);
         terms[4] = goal;
         terms[5] = if on_seat { 1.0 } else { 0.0 };
+        terms[6] = if object.1 { 1.0 } else { 0.0 };
         let t = &settings.termination;
-        let fell = (t.fall && contacts.fallen) || pelvis.pos[2] < t.min_height;
+        // A dropped box or ball ends the episode like a fall.
+        let fell = (t.fall && contacts.fallen) || pelvis.pos[2] < t.min_height || object.2;
         let reward = if fell {
             0.0
         } else {
@@ -423,6 +542,7 @@ impl Task for ImitationTask {
         if let (Some((prop, _)), Goal::Seat { clear_start: true, .. }) = (settings.seat, &settings.goal) {
             self.separate_from_seat(world, prop);
         }
+        self.place_object(world, rng);
         self.cycles = 0;
         self.start_frame = self.phase;
         self.start_heading = world.heading();
@@ -489,6 +609,22 @@ impl Task for ImitationTask {
         }
         Ok(())
     }
+}
+
+/// A catch throw at `target` from the direction `yaw` that arrives after `flight` seconds: the
+/// forward speed, sideways speed, rise and spin are drawn from `spec`, the distance is what the
+/// forward speed covers in `flight`.
+pub fn catch_throw(
+    spec: &ThrowSpec,
+    target: [f64; 3],
+    yaw: f64,
+    flight: f64,
+    rng: &mut EnvRng,
+) -> repertoire_scenes::Throw {
+    let v_x = spec.v_x.sample(rng);
+    let lateral = spec.lateral.sample(rng);
+    let d_z = spec.d_z.sample(rng);
+    spec.throw_with(target, yaw, v_x * flight, v_x, lateral, d_z, rng)
 }
 
 fn apply_pool_state(state: &PoolState, world: &mut World, x: f64, y: f64, heading: f64) {

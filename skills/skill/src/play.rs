@@ -26,6 +26,8 @@ pub struct Played {
     pub fell: bool,
     /// Whether the pelvis was on the seat at the end (sit).
     pub on_seat: bool,
+    /// Whether an object goal's state held at the end (box raised, held, put down, ball caught).
+    pub object_done: bool,
     /// Undiscounted return.
     pub episode_return: f64,
 }
@@ -99,6 +101,7 @@ pub fn play(setup: &SkillSetup, skill: &mut LibrarySkill, start: StartFrom, seed
                 steps: env.steps(),
                 fell: out.terminated,
                 on_seat: out.terms[5] > 0.5,
+                object_done: out.terms[6] > 0.5,
                 episode_return,
             });
         }

@@ -47,6 +47,8 @@ pub struct Reference {
     pub velocity: Vec<[f64; 3]>,
     /// End effectors relative to the pelvis in its heading frame, per frame.
     pub end_effectors: Vec<[[f64; 3]; END_EFFECTORS]>,
+    /// The hands' midpoint per frame (world of the clip): where a held box or ball goes.
+    pub hands: Vec<[f64; 3]>,
 }
 
 /// `v` (world) in the heading frame of `yaw`: x forward, y left, z up.
@@ -89,6 +91,7 @@ impl Reference {
             pitch_roll: Vec::with_capacity(n),
             velocity: Vec::with_capacity(n),
             end_effectors: Vec::with_capacity(n),
+            hands: Vec::with_capacity(n),
         };
         for f in 0..n {
             let q = &clip.qpos[f * nq..(f + 1) * nq];
@@ -105,6 +108,7 @@ impl Reference {
             let x = data.xpos();
             let ee = [x[idx.hands[0]], x[idx.hands[1]], x[idx.feet[0]], x[idx.feet[1]], x[idx.head]];
             r.end_effectors.push(local_end_effectors(&pelvis, ee));
+            r.hands.push(std::array::from_fn(|k| 0.5 * (ee[0][k] + ee[1][k])));
             r.height.push(pelvis.pos[2]);
             r.heading.push(features.heading[f]);
             r.pitch_roll.push([pelvis.pitch(), pelvis.roll()]);
@@ -135,6 +139,7 @@ impl Reference {
         for f in 0..n {
             self.root_pos[f][2] += lift[f];
             self.height[f] += lift[f];
+            self.hands[f][2] += lift[f];
             // Central differences (one-sided at the ends) of the added height.
             let (a, b) = (f.saturating_sub(1), (f + 1).min(n - 1));
             let vz = if b > a { (lift[b] - lift[a]) / ((b - a) as f64 * self.dt) } else { 0.0 };
@@ -161,6 +166,11 @@ impl Reference {
     /// Joint velocities of frame `f`.
     pub fn joint_vel_at(&self, f: usize) -> &[f64] {
         &self.joint_vel[f * self.dof..(f + 1) * self.dof]
+    }
+
+    /// The frame at `t` seconds into the clip (clamped to the last).
+    pub fn frame_at(&self, t: f64) -> usize {
+        ((t / self.dt).round().max(0.0) as usize).min(self.frames() - 1)
     }
 
     /// Heading change over the clip (radians, left positive).

@@ -9,7 +9,7 @@ use repertoire_humanoid::HumanoidEnv;
 use repertoire_scenes::{ObservationLayout, ScenarioFile, WorldModel};
 
 use crate::error::{Result, SkillError};
-use crate::imitation::{ImitationTask, TaskSettings};
+use crate::imitation::{ImitationTask, ObjectSetup, TaskSettings};
 use crate::library::ClipRecord;
 use crate::pool::Pool;
 use crate::reference::Reference;
@@ -84,6 +84,8 @@ impl SkillSetup {
             clip = clip.mirrored(&body)?;
         }
         clip.looping = s.clip.looping;
+        hold_joints(&mut clip, &body, &s.clip.pose_deg)
+            .map_err(|m| SkillError::Invalid(format!("{}: {m}", spec.path.display())))?;
         let control_hz = f64::from(model.scenario.scenario.rates.control_hz);
         let mut reference = Reference::new(&clip, &body, control_hz)?;
         if s.clip.seat_lift_m != 0.0 {
@@ -118,6 +120,7 @@ impl SkillSetup {
             }
             _ => None,
         };
+        let object = object_setup(&spec, &model, &reference)?;
         let mut pools = Vec::new();
         if let Init::Pools { from, .. } = &s.init {
             for name in from {
@@ -155,6 +158,7 @@ impl SkillSetup {
             termination: s.termination,
             pools,
             seat,
+            object,
         });
         Ok(SkillSetup { spec, model, body, layout, settings, clip, max_steps: max_steps.max(1) })
     }
@@ -187,4 +191,90 @@ fn goal_forward(goal: &Goal) -> f64 {
         Goal::Seat { forward_m, .. } => *forward_m,
         _ => 0.0,
     }
+}
+
+/// Sets the joints named in `pose_deg` to those angles (degrees; metres for slides) in every
+/// frame of `clip`.
+fn hold_joints(
+    clip: &mut Clip,
+    body: &ClipBody,
+    pose_deg: &std::collections::BTreeMap<String, f64>,
+) -> Result<(), String> {
+    for (name, &v) in pose_deg {
+        let j = body.joint(name).ok_or_else(|| {
+            use repertoire_clip::body::JointKind;
+            let known: Vec<&str> = body
+                .joints
+                .iter()
+                .filter(|j| matches!(j.kind, JointKind::Hinge | JointKind::Slide))
+                .map(|j| j.name.as_str())
+                .collect();
+            format!("clip pose_deg names joint `{name}`, which the body lacks; it has: {}", known.join(", "))
+        })?;
+        let value = if j.kind == repertoire_clip::body::JointKind::Slide { v } else { v.to_radians() };
+        let value = j.range.map_or(value, |[lo, hi]| value.clamp(lo, hi));
+        let (nq, q) = (clip.nq, j.qpos);
+        for frame in clip.qpos.chunks_exact_mut(nq) {
+            frame[q] = value;
+        }
+    }
+    Ok(())
+}
+
+/// Resolves an object goal's props and clip times: the box or ball must be a free prop of the
+/// scene, the pedestal a fixed one, the times inside the clip.
+fn object_setup(spec: &SpecFile, model: &WorldModel, r: &Reference) -> Result<Option<ObjectSetup>> {
+    let goal = &spec.spec.goal;
+    let Some((kind, name)) = goal.object() else { return Ok(None) };
+    let invalid = |m: String| SkillError::Invalid(format!("{}: goal {kind}: {m}", spec.path.display()));
+    let scene = model.scenario.path.display();
+    let find = |name: &str, free: bool, what: &str| -> Result<usize> {
+        let id = model
+            .prop_id(name)
+            .ok_or_else(|| invalid(format!("names prop `{name}`, which the scene {scene} lacks")))?;
+        if model.scenario.scenario.props[id].is_free() != free {
+            return Err(invalid(format!("prop `{name}` of {scene} is not {what}")));
+        }
+        Ok(id)
+    };
+    let prop = find(name, true, "a free box or ball")?;
+    let pedestal = goal.pedestal().map(|p| find(p, false, "a fixed pedestal")).transpose()?;
+    let duration = r.duration();
+    let frame = |what: &str, t: f64| -> Result<usize> {
+        if t > duration {
+            return Err(invalid(format!("{what} = {t} s is past the clip's end ({duration:.2} s)")));
+        }
+        Ok(r.frame_at(t))
+    };
+    let n = r.frames();
+    let (held, pedestal_frame) = match goal {
+        Goal::Lift { grip_s, .. } => {
+            let g = frame("grip_s", *grip_s)?;
+            (g..n, Some(g))
+        }
+        Goal::PutDown { release_s, .. } => {
+            let g = frame("release_s", *release_s)?;
+            (0..g, Some(g))
+        }
+        Goal::Catch { catch_s, .. } => {
+            let c = frame("catch_s", *catch_s)?;
+            // A throw needs some flight time: starts closer to the catch than this hold the ball.
+            let min_flight = (0.25 / r.dt).round() as usize;
+            (c.saturating_sub(min_flight)..n, Some(c))
+        }
+        _ => (0..n, None),
+    };
+    let shape = &model.scenario.scenario.props[prop];
+    let half = match shape {
+        repertoire_scenes::Prop::Box(b) => 0.5 * b.size.2,
+        repertoire_scenes::Prop::Ball(b) => b.radius,
+        other => return Err(invalid(format!("prop `{name}` is a {}, not a box or ball", other.kind()))),
+    };
+    Ok(Some(ObjectSetup {
+        prop,
+        pedestal: pedestal.zip(pedestal_frame),
+        catch_frame: if matches!(goal, Goal::Catch { .. }) { pedestal_frame } else { None },
+        held,
+        half,
+    }))
 }

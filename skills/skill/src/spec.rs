@@ -3,8 +3,11 @@
 
 use std::path::{Path, PathBuf};
 
+use std::collections::BTreeMap;
+
 use repertoire_learn::ppo::PpoConfig;
 use repertoire_scenes::Feature;
+use repertoire_scenes::throw::ThrowSpec;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Result, SkillError};
@@ -34,6 +37,10 @@ pub struct ClipRef {
     /// than this body's pelvis can rest on the scene's chair.
     #[serde(default)]
     pub seat_lift_m: f64,
+    /// Joints held at these angles (degrees) in every frame, after cutting and mirroring: the
+    /// walk cycle with the arms held forward round a box (carry).
+    #[serde(default)]
+    pub pose_deg: BTreeMap<String, f64>,
 }
 
 /// Weight and sharpness of one imitation term: `weight · exp(−scale · error²)`.
@@ -131,6 +138,124 @@ pub enum Goal {
         #[serde(default)]
         clear_start: bool,
     },
+    /// Lift: the pedestal `pedestal` stands under the clip's hands at `grip_s` (seconds into the
+    /// clip) with the box `prop` on it. Reward `weight · (0.5·hold + 0.5·raise)`: `hold` =
+    /// `0.5·exp(−scale·d²) + 0.25` per hand touching the box (`d`: box centre to the hands'
+    /// midpoint), `raise` = the box's height above the pedestal top over `lift_m` (at most 1,
+    /// 0 while no hand touches it). Done: raised ≥ 80 % of `lift_m` in a hand, off the floor.
+    Lift {
+        /// Weight.
+        weight: f32,
+        /// The box's prop name.
+        prop: String,
+        /// The pedestal's prop name.
+        pedestal: String,
+        /// When the clip's hands close on the box (s).
+        grip_s: f64,
+        /// How far to raise the box's bottom above the pedestal top (m).
+        lift_m: f64,
+        /// Sharpness of the hold term (1/m²).
+        #[serde(default = "default_hold_scale")]
+        scale: f64,
+    },
+    /// Carry: the box `prop` starts between the clip's hands; reward
+    /// `weight · (0.6·hold + 0.4·exp(−speed_scale·‖v − v̂‖²))` with `hold` as for [`Goal::Lift`]
+    /// and `v̂` the clip's root velocity in the heading frame. Done: a hand on the box, its
+    /// centre within 0.2 m of the hands' midpoint, off the floor.
+    Carry {
+        /// Weight.
+        weight: f32,
+        /// The box's prop name.
+        prop: String,
+        /// Sharpness of the hold term (1/m²).
+        #[serde(default = "default_hold_scale")]
+        scale: f64,
+        /// Sharpness of the velocity term.
+        #[serde(default = "default_speed_scale")]
+        speed_scale: f64,
+    },
+    /// Put down: the pedestal stands under the clip's hands at `release_s`; the box starts in
+    /// the hands before it, on the pedestal after. Reward `weight · (0.5 + 0.5·released)` once
+    /// the box rests on the pedestal (≥ 4 contacts), else `weight · 0.5·exp(−scale·d²)` with `d`
+    /// the box centre's distance to its resting place on the pedestal top. Done: resting on
+    /// the pedestal, no hand on it.
+    PutDown {
+        /// Weight.
+        weight: f32,
+        /// The box's prop name.
+        prop: String,
+        /// The pedestal's prop name.
+        pedestal: String,
+        /// When the clip's hands let go of the box (s).
+        release_s: f64,
+        /// Sharpness of the placement term (1/m²).
+        #[serde(default = "default_hold_scale")]
+        scale: f64,
+    },
+    /// Catch: the ball `prop` is thrown (per `throw`, from in front) at the clip's hands'
+    /// midpoint at `catch_s`, arriving then: its forward speed is drawn from `throw.v_x` and
+    /// its distance is what that speed covers in the time left (the spec's `distance_m` is not
+    /// used); starts at or after `catch_s` (less than 0.25 s before) put it in the hands.
+    /// Reward `weight · hold` as for [`Goal::Lift`]; the ball on the floor ends the episode.
+    /// Done: off the floor, in a hand or within 0.2 m of the hands' midpoint.
+    Catch {
+        /// Weight.
+        weight: f32,
+        /// The ball's prop name.
+        prop: String,
+        /// When the clip's hands meet the ball (s).
+        catch_s: f64,
+        /// How the ball is thrown.
+        #[serde(default)]
+        throw: ThrowSpec,
+        /// Sharpness of the hold term (1/m²).
+        #[serde(default = "default_hold_scale")]
+        scale: f64,
+    },
+}
+
+fn default_hold_scale() -> f64 {
+    20.0
+}
+
+fn default_speed_scale() -> f64 {
+    2.0
+}
+
+impl Goal {
+    /// The goal term's weight in the reward sum.
+    pub fn weight(&self) -> f32 {
+        match self {
+            Goal::None => 0.0,
+            Goal::RootVelocity { weight, .. }
+            | Goal::Heading { weight, .. }
+            | Goal::Target { weight, .. }
+            | Goal::Seat { weight, .. }
+            | Goal::Lift { weight, .. }
+            | Goal::Carry { weight, .. }
+            | Goal::PutDown { weight, .. }
+            | Goal::Catch { weight, .. } => *weight,
+        }
+    }
+
+    /// The free prop (box, ball) an object goal is about, with the goal's name.
+    pub fn object(&self) -> Option<(&'static str, &str)> {
+        match self {
+            Goal::Lift { prop, .. } => Some(("Lift", prop)),
+            Goal::Carry { prop, .. } => Some(("Carry", prop)),
+            Goal::PutDown { prop, .. } => Some(("PutDown", prop)),
+            Goal::Catch { prop, .. } => Some(("Catch", prop)),
+            _ => None,
+        }
+    }
+
+    /// The fixed prop (pedestal) an object goal places under the clip's hands.
+    pub fn pedestal(&self) -> Option<&str> {
+        match self {
+            Goal::Lift { pedestal, .. } | Goal::PutDown { pedestal, .. } => Some(pedestal),
+            _ => None,
+        }
+    }
 }
 
 /// Where episodes start.
@@ -250,6 +375,33 @@ impl SpecFile {
             }
             if from.is_empty() {
                 return bad("init Pools names no predecessor skill".into());
+            }
+        }
+        for (name, v) in &spec.clip.pose_deg {
+            if !v.is_finite() {
+                return bad(format!("clip pose_deg `{name}` is not finite"));
+            }
+        }
+        let goal_times: &[(&str, f64)] = match &spec.goal {
+            Goal::Lift { grip_s, lift_m, scale, .. } => {
+                if !(lift_m.is_finite() && *lift_m > 0.0) {
+                    return bad(format!("goal Lift lift_m must be positive, got {lift_m}"));
+                }
+                &[("grip_s", *grip_s), ("scale", *scale)]
+            }
+            Goal::Carry { scale, speed_scale, .. } => &[("scale", *scale), ("speed_scale", *speed_scale)],
+            Goal::PutDown { release_s, scale, .. } => &[("release_s", *release_s), ("scale", *scale)],
+            Goal::Catch { catch_s, throw, scale, .. } => {
+                if let Err(m) = throw.validate(&format!("{} goal Catch", path.display())) {
+                    return Err(SkillError::Invalid(m));
+                }
+                &[("catch_s", *catch_s), ("scale", *scale)]
+            }
+            _ => &[],
+        };
+        for (name, v) in goal_times {
+            if !(v.is_finite() && *v >= 0.0) {
+                return bad(format!("goal {name} must be finite and ≥ 0, got {v}"));
             }
         }
         if spec.ppo.num_envs == 0 || spec.ppo.num_steps == 0 {
