@@ -82,6 +82,10 @@ fn a_latent_high_level_trains_and_evaluates_on_the_sitting_scenario() {
     assert!(manifest.contains("latent_fnv1a") && manifest.contains("skills/library/latent"), "{manifest}");
     let metrics = std::fs::read_to_string(dir.join("run/metrics.csv")).unwrap();
     assert_eq!(metrics.lines().count(), 3, "{metrics}");
+    // The zone curriculum is logged as for the skills' controller (for `repertoire report`).
+    let schedule = std::fs::read_to_string(dir.join("run/curriculum.csv")).unwrap();
+    assert!(schedule.starts_with("iteration,episodes,zone,") && schedule.lines().count() == 3, "{schedule}");
+    assert!(schedule.lines().skip(1).all(|l| l.split(',').nth(2) == Some("front")), "{schedule}");
     // The per-episode figures are the episodes' (the learning core sums terms over an episode):
     // at most the 20 s limit, a minimum distance no larger than a start 2.5 m from the chair.
     let header: Vec<&str> = metrics.lines().next().unwrap().split(',').collect();

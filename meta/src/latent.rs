@@ -22,7 +22,7 @@ use std::sync::{Arc, RwLock};
 use std::time::Instant;
 
 use rand::Rng;
-use repertoire_curriculum::{Advance, ZoneCurriculum};
+use repertoire_curriculum::Advance;
 use repertoire_humanoid::{HumanoidEnv, Task, TaskStep};
 use repertoire_latent::high::{LatentEnv, Z_BOUND};
 use repertoire_latent::model::LatentPolicy;
@@ -417,14 +417,7 @@ pub fn train(
     setup: Arc<LatentSetup>,
     opts: &crate::train::MetaTrainOptions,
 ) -> Result<(LatentMetaManifest, Vec<IterationMetrics>)> {
-    let sc = &setup.model.scenario.scenario;
-    let mut curriculum = match (&sc.curriculum, opts.curriculum) {
-        (Some(c), true) => Some(ZoneCurriculum::new(c, true)),
-        _ => None,
-    };
-    if let Some(c) = &curriculum {
-        *setup.zones.write().expect("never poisoned") = c.open_zones().to_vec();
-    }
+    let mut schedule = crate::train::Schedule::start(&setup.model, &setup.zones, opts)?;
     let envs = LatentMetaEnv::many(&setup, opts.ppo.num_envs)?;
     let mut ppo = Ppo::new(opts.ppo.clone(), envs);
     let io = |e| MetaError::Invalid(format!("{}: {e}", opts.run_dir.display()));
@@ -434,19 +427,12 @@ pub fn train(
     while ppo.iteration < ppo.cfg.num_iterations {
         let m = ppo.iterate();
         run.log(&m).map_err(io)?;
-        if let Some(c) = &mut curriculum {
-            for e in &ppo.last_episodes {
-                if let Some(a) = c.record(e.terms[0] > 0.5) {
-                    tracing::info!(from = %a.from, to = %a.to, episode = a.episode, rate = a.success_rate, "curriculum advances");
-                    *setup.zones.write().expect("never poisoned") = c.open_zones().to_vec();
-                }
-            }
-        }
+        schedule.after_iteration(m.iteration, &ppo.last_episodes)?;
         tracing::info!(
             iteration = m.iteration,
             mean_return = m.mean_return,
             success = m.terms.first().map_or(f32::NAN, |t| t.1),
-            zone = curriculum.as_ref().map_or("all", |c| c.current()),
+            zone = schedule.zone(),
             "latent meta iteration"
         );
         history.push(m);
@@ -468,8 +454,8 @@ pub fn train(
         iterations: ppo.iteration,
         samples: ppo.global_step,
         seconds: started.elapsed().as_secs_f64(),
-        curriculum: curriculum.is_some(),
-        advances: curriculum.map(|c| c.history).unwrap_or_default(),
+        curriculum: schedule.is_on(),
+        advances: schedule.into_history(),
         command: opts.command.clone(),
         git_hash: git_hash(),
     };

@@ -4,14 +4,16 @@
 
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
+use std::sync::{Arc, RwLock};
 use std::time::Instant;
 
 use repertoire_curriculum::{Advance, ZoneCurriculum};
 use repertoire_learn::acting::ActingHybrid;
 use repertoire_learn::checkpoint;
+use repertoire_learn::env::EpisodeStats;
 use repertoire_learn::ppo::{IterationMetrics, Ppo, PpoConfig};
 use repertoire_learn::run_dir::{RunDir, git_hash};
+use repertoire_scenes::WorldModel;
 use serde::{Deserialize, Serialize};
 
 use crate::env::{MetaEnv, MetaSetup};
@@ -78,61 +80,22 @@ pub fn default_ppo() -> PpoConfig {
 
 /// Trains the meta-controller of `setup`; returns the manifest and each iteration's metrics.
 pub fn train(setup: Arc<MetaSetup>, opts: &MetaTrainOptions) -> Result<(MetaManifest, Vec<IterationMetrics>)> {
-    let sc = &setup.model.scenario.scenario;
-    let mut curriculum = match (&sc.curriculum, opts.curriculum) {
-        (Some(c), true) => Some(ZoneCurriculum::new(c, true)),
-        _ => None,
-    };
-    if let Some(c) = &curriculum {
-        *setup.zones.write().expect("never poisoned") = c.open_zones().to_vec();
-    }
+    let mut schedule = Schedule::start(&setup.model, &setup.zones, opts)?;
     let envs = (0..opts.ppo.num_envs).map(|_| MetaEnv::new(Arc::clone(&setup))).collect();
     let mut ppo = Ppo::new(opts.ppo.clone(), envs);
     let io = |e| MetaError::Invalid(format!("{}: {e}", opts.run_dir.display()));
     let mut run = RunDir::create(&opts.run_dir, &ppo.cfg).map_err(io)?;
-    // The curriculum schedule, one row per iteration, for `repertoire report`.
-    let schedule_path = opts.run_dir.join("curriculum.csv");
-    let mut schedule = match &curriculum {
-        Some(_) => {
-            let mut f = std::fs::File::create(&schedule_path)
-                .map_err(|e| MetaError::Invalid(format!("{}: {e}", schedule_path.display())))?;
-            writeln!(f, "iteration,episodes,zone,zone_index,success_window,advance_at")
-                .map_err(|e| MetaError::Invalid(format!("{}: {e}", schedule_path.display())))?;
-            Some(f)
-        }
-        None => None,
-    };
     let started = Instant::now();
     let mut history = Vec::new();
     while ppo.iteration < ppo.cfg.num_iterations {
         let m = ppo.iterate();
         run.log(&m).map_err(io)?;
-        if let Some(c) = &mut curriculum {
-            for e in &ppo.last_episodes {
-                if let Some(a) = c.record(e.terms[0] > 0.5) {
-                    tracing::info!(from = %a.from, to = %a.to, episode = a.episode, rate = a.success_rate, "curriculum advances");
-                    *setup.zones.write().expect("never poisoned") = c.open_zones().to_vec();
-                }
-            }
-        }
-        if let (Some(c), Some(f)) = (&curriculum, &mut schedule) {
-            let rate = c.window_rate().map_or_else(String::new, |r| format!("{r:.4}"));
-            writeln!(
-                f,
-                "{},{},{},{},{rate},{}",
-                m.iteration,
-                c.episodes(),
-                c.current(),
-                c.current_index(),
-                c.advance_at()
-            )
-            .map_err(|e| MetaError::Invalid(format!("{}: {e}", schedule_path.display())))?;
-        }
+        schedule.after_iteration(m.iteration, &ppo.last_episodes)?;
         tracing::info!(
             iteration = m.iteration,
             mean_return = m.mean_return,
             success = m.terms.first().map_or(f32::NAN, |t| t.1),
-            zone = curriculum.as_ref().map_or("all", |c| c.current()),
+            zone = schedule.zone(),
             "meta iteration"
         );
         history.push(m);
@@ -151,8 +114,8 @@ pub fn train(setup: Arc<MetaSetup>, opts: &MetaTrainOptions) -> Result<(MetaMani
         iterations: ppo.iteration,
         samples: ppo.global_step,
         seconds: started.elapsed().as_secs_f64(),
-        curriculum: curriculum.is_some(),
-        advances: curriculum.map(|c| c.history).unwrap_or_default(),
+        curriculum: schedule.is_on(),
+        advances: schedule.into_history(),
         command: opts.command.clone(),
         git_hash: git_hash(),
     };
@@ -160,6 +123,69 @@ pub fn train(setup: Arc<MetaSetup>, opts: &MetaTrainOptions) -> Result<(MetaMani
         .map_err(|e| MetaError::Invalid(e.to_string()))?;
     repertoire_skill::library::write_atomic(&opts.out.join("meta.ron"), text.as_bytes())?;
     Ok((manifest, history))
+}
+
+/// The zone curriculum during a training run, shared by the skills' and the latent high level's
+/// trainers: it opens zones in `zones` (read by every environment at reset), records each
+/// finished episode's success (term 0) and writes one row per iteration to the run's
+/// `curriculum.csv` for `repertoire report`. Without a curriculum every call does nothing.
+pub(crate) struct Schedule<'a> {
+    curriculum: Option<ZoneCurriculum>,
+    zones: &'a RwLock<Vec<String>>,
+    file: Option<(std::fs::File, PathBuf)>,
+}
+
+impl<'a> Schedule<'a> {
+    /// Starts the scenario's curriculum of `model` when `opts.curriculum` asks for it.
+    pub(crate) fn start(model: &WorldModel, zones: &'a RwLock<Vec<String>>, opts: &MetaTrainOptions) -> Result<Self> {
+        let curriculum = match (&model.scenario.scenario.curriculum, opts.curriculum) {
+            (Some(c), true) => Some(ZoneCurriculum::new(c, true)),
+            _ => None,
+        };
+        let mut file = None;
+        if let Some(c) = &curriculum {
+            *zones.write().expect("never poisoned") = c.open_zones().to_vec();
+            let path = opts.run_dir.join("curriculum.csv");
+            let fail = |e: std::io::Error| MetaError::Invalid(format!("{}: {e}", path.display()));
+            std::fs::create_dir_all(&opts.run_dir).map_err(fail)?;
+            let mut f = std::fs::File::create(&path).map_err(fail)?;
+            writeln!(f, "iteration,episodes,zone,zone_index,success_window,advance_at").map_err(fail)?;
+            file = Some((f, path));
+        }
+        Ok(Schedule { curriculum, zones, file })
+    }
+
+    /// Records the episodes an iteration finished and logs the iteration's row.
+    pub(crate) fn after_iteration(&mut self, iteration: usize, episodes: &[EpisodeStats]) -> Result<()> {
+        let Some(c) = &mut self.curriculum else { return Ok(()) };
+        for e in episodes {
+            if let Some(a) = c.record(e.terms[0] > 0.5) {
+                tracing::info!(from = %a.from, to = %a.to, episode = a.episode, rate = a.success_rate, "curriculum advances");
+                *self.zones.write().expect("never poisoned") = c.open_zones().to_vec();
+            }
+        }
+        if let Some((f, path)) = &mut self.file {
+            let rate = c.window_rate().map_or_else(String::new, |r| format!("{r:.4}"));
+            writeln!(f, "{iteration},{},{},{},{rate},{}", c.episodes(), c.current(), c.current_index(), c.advance_at())
+                .map_err(|e| MetaError::Invalid(format!("{}: {e}", path.display())))?;
+        }
+        Ok(())
+    }
+
+    /// The current zone, or `all` without a curriculum.
+    pub(crate) fn zone(&self) -> &str {
+        self.curriculum.as_ref().map_or("all", |c| c.current())
+    }
+
+    /// Whether a curriculum runs.
+    pub(crate) fn is_on(&self) -> bool {
+        self.curriculum.is_some()
+    }
+
+    /// Its zone switches.
+    pub(crate) fn into_history(self) -> Vec<Advance> {
+        self.curriculum.map(|c| c.history).unwrap_or_default()
+    }
 }
 
 /// Loads a trained meta-controller and checks it fits `setup`.
