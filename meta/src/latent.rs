@@ -27,10 +27,9 @@ use repertoire_humanoid::{HumanoidEnv, Task, TaskStep};
 use repertoire_latent::high::{LatentEnv, Z_BOUND};
 use repertoire_latent::model::LatentPolicy;
 use repertoire_learn::acting::ActingPolicy;
-use repertoire_learn::checkpoint;
 use repertoire_learn::env::{Env, EnvRng, MAX_TERMS, StepOutcome};
 use repertoire_learn::ppo::{IterationMetrics, Ppo, PpoConfig};
-use repertoire_learn::run_dir::{RunDir, git_hash};
+use repertoire_learn::run_dir::git_hash;
 use repertoire_scenes::math::wrap_angle;
 use repertoire_scenes::{Feature, ObservationLayout, World, WorldModel};
 use repertoire_skill::library;
@@ -420,25 +419,8 @@ pub fn train(
     let mut schedule = crate::train::Schedule::start(&setup.model, &setup.zones, opts)?;
     let envs = LatentMetaEnv::many(&setup, opts.ppo.num_envs)?;
     let mut ppo = Ppo::new(opts.ppo.clone(), envs);
-    let io = |e| MetaError::Invalid(format!("{}: {e}", opts.run_dir.display()));
-    let mut run = RunDir::create(&opts.run_dir, &ppo.cfg).map_err(io)?;
     let started = Instant::now();
-    let mut history = Vec::new();
-    while ppo.iteration < ppo.cfg.num_iterations {
-        let m = ppo.iterate();
-        run.log(&m).map_err(io)?;
-        schedule.after_iteration(m.iteration, &ppo.last_episodes)?;
-        tracing::info!(
-            iteration = m.iteration,
-            mean_return = m.mean_return,
-            success = m.terms.first().map_or(f32::NAN, |t| t.1),
-            zone = schedule.zone(),
-            "latent meta iteration"
-        );
-        history.push(m);
-    }
-    let last = run.checkpoint_stem(ppo.iteration);
-    checkpoint::save(&mut ppo, &last).map_err(|e| MetaError::Invalid(e.to_string()))?;
+    let history = crate::train::run_iterations(&mut ppo, &mut schedule, opts, "latent")?;
     std::fs::create_dir_all(&opts.out).map_err(|e| MetaError::Invalid(format!("{}: {e}", opts.out.display())))?;
     let policy = ActingPolicy::from_ppo(&ppo);
     policy.save(&opts.out.join(WEIGHTS_FILE)).map_err(|e| MetaError::Invalid(e.to_string()))?;

@@ -10,7 +10,7 @@ use std::time::Instant;
 use repertoire_curriculum::{Advance, ZoneCurriculum};
 use repertoire_learn::acting::ActingHybrid;
 use repertoire_learn::checkpoint;
-use repertoire_learn::env::EpisodeStats;
+use repertoire_learn::env::{Env, EpisodeStats};
 use repertoire_learn::ppo::{IterationMetrics, Ppo, PpoConfig};
 use repertoire_learn::run_dir::{RunDir, git_hash};
 use repertoire_scenes::WorldModel;
@@ -83,25 +83,8 @@ pub fn train(setup: Arc<MetaSetup>, opts: &MetaTrainOptions) -> Result<(MetaMani
     let mut schedule = Schedule::start(&setup.model, &setup.zones, opts)?;
     let envs = (0..opts.ppo.num_envs).map(|_| MetaEnv::new(Arc::clone(&setup))).collect();
     let mut ppo = Ppo::new(opts.ppo.clone(), envs);
-    let io = |e| MetaError::Invalid(format!("{}: {e}", opts.run_dir.display()));
-    let mut run = RunDir::create(&opts.run_dir, &ppo.cfg).map_err(io)?;
     let started = Instant::now();
-    let mut history = Vec::new();
-    while ppo.iteration < ppo.cfg.num_iterations {
-        let m = ppo.iterate();
-        run.log(&m).map_err(io)?;
-        schedule.after_iteration(m.iteration, &ppo.last_episodes)?;
-        tracing::info!(
-            iteration = m.iteration,
-            mean_return = m.mean_return,
-            success = m.terms.first().map_or(f32::NAN, |t| t.1),
-            zone = schedule.zone(),
-            "meta iteration"
-        );
-        history.push(m);
-    }
-    let last = run.checkpoint_stem(ppo.iteration);
-    checkpoint::save(&mut ppo, &last).map_err(|e| MetaError::Invalid(e.to_string()))?;
+    let history = run_iterations(&mut ppo, &mut schedule, opts, "skills")?;
     std::fs::create_dir_all(&opts.out).map_err(|e| MetaError::Invalid(format!("{}: {e}", opts.out.display())))?;
     let head = ActingHybrid::from_ppo(&ppo).expect("the meta environment has hybrid actions");
     head.save(&opts.out.join("meta.safetensors")).map_err(|e| MetaError::Invalid(e.to_string()))?;
@@ -123,6 +106,37 @@ pub fn train(setup: Arc<MetaSetup>, opts: &MetaTrainOptions) -> Result<(MetaMani
         .map_err(|e| MetaError::Invalid(e.to_string()))?;
     repertoire_skill::library::write_atomic(&opts.out.join("meta.ron"), text.as_bytes())?;
     Ok((manifest, history))
+}
+
+/// Runs `ppo` to its iteration count with the zone curriculum `schedule`, logging every
+/// iteration to the run directory and saving the last checkpoint there; returns each
+/// iteration's metrics. `low_level` names the controller in the logs (`skills`, `latent`).
+pub(crate) fn run_iterations<E: Env>(
+    ppo: &mut Ppo<E>,
+    schedule: &mut Schedule,
+    opts: &MetaTrainOptions,
+    low_level: &str,
+) -> Result<Vec<IterationMetrics>> {
+    let io = |e| MetaError::Invalid(format!("{}: {e}", opts.run_dir.display()));
+    let mut run = RunDir::create(&opts.run_dir, &ppo.cfg).map_err(io)?;
+    let mut history = Vec::new();
+    while ppo.iteration < ppo.cfg.num_iterations {
+        let m = ppo.iterate();
+        run.log(&m).map_err(io)?;
+        schedule.after_iteration(m.iteration, &ppo.last_episodes)?;
+        tracing::info!(
+            low_level,
+            iteration = m.iteration,
+            mean_return = m.mean_return,
+            success = m.terms.first().map_or(f32::NAN, |t| t.1),
+            zone = schedule.zone(),
+            "meta iteration"
+        );
+        history.push(m);
+    }
+    let last = run.checkpoint_stem(ppo.iteration);
+    checkpoint::save(ppo, &last).map_err(|e| MetaError::Invalid(e.to_string()))?;
+    Ok(history)
 }
 
 /// The zone curriculum during a training run, shared by the skills' and the latent high level's
