@@ -6,11 +6,12 @@ use std::sync::Arc;
 
 use anyhow::{Context, Result};
 use clap::Subcommand;
+use repertoire_learn::ppo::IterationMetrics;
 use repertoire_meta::eval::{evaluate, save_worst};
 use repertoire_meta::latent::{self, LatentSetup};
 use repertoire_meta::task_eval::{StartGrid, evaluate_toss, evaluate_warehouse};
 use repertoire_meta::train::{MetaTrainOptions, default_ppo, load, train};
-use repertoire_meta::{MetaSetup, SkillGraph, TaskSpec};
+use repertoire_meta::{Advance, MetaSetup, SkillGraph, TaskSpec};
 use repertoire_scenes::WorldModel;
 
 /// The committed skill library and meta-controller.
@@ -174,27 +175,14 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
                 command,
             };
             let (manifest, history) = train(setup, &opts).context("training the meta-controller")?;
-            let last = history.last();
-            println!("| iterations | decisions | minutes | mean return | success (last iteration) | zone switches |");
-            println!("|---:|---:|---:|---:|---:|---:|");
-            println!(
-                "| {} | {} | {:.1} | {:.2} | {:.1}% | {} |",
+            print_training(
+                "decisions",
                 manifest.iterations,
                 manifest.samples,
-                manifest.seconds / 60.0,
-                last.map_or(f32::NAN, |m| m.mean_return),
-                100.0 * last.and_then(|m| m.terms.first()).map_or(f32::NAN, |t| t.1),
-                manifest.advances.len()
+                manifest.seconds,
+                &history,
+                &manifest.advances,
             );
-            for a in &manifest.advances {
-                println!(
-                    "curriculum: {} → {} after {} episodes (success {:.0}%)",
-                    a.from,
-                    a.to,
-                    a.episode,
-                    100.0 * a.success_rate
-                );
-            }
             println!("meta-controller written to {}; run in {}", out.display(), run_dir.display());
             Ok(())
         }
@@ -337,17 +325,13 @@ fn train_latent(model: Arc<WorldModel>, dir: &Path, a: LatentTrain) -> Result<()
         command: a.command,
     };
     let (manifest, history) = latent::train(setup, &opts).context("training the latent high level")?;
-    let last = history.last();
-    println!("| iterations | high-level steps | minutes | mean return | success (last iteration) | zone switches |");
-    println!("|---:|---:|---:|---:|---:|---:|");
-    println!(
-        "| {} | {} | {:.1} | {:.2} | {:.1}% | {} |",
+    print_training(
+        "high-level steps",
         manifest.iterations,
         manifest.samples,
-        manifest.seconds / 60.0,
-        last.map_or(f32::NAN, |m| m.mean_return),
-        100.0 * last.and_then(|m| m.terms.first()).map_or(f32::NAN, |t| t.1),
-        manifest.advances.len()
+        manifest.seconds,
+        &history,
+        &manifest.advances,
     );
     println!(
         "latent high level (z of {}, held {} ticks, through {}) written to {}; run in {}",
@@ -358,6 +342,36 @@ fn train_latent(model: Arc<WorldModel>, dir: &Path, a: LatentTrain) -> Result<()
         run_dir.display()
     );
     Ok(())
+}
+
+/// The table a training run ends with, and its zone switches.
+fn print_training(
+    steps: &str,
+    iterations: usize,
+    samples: u64,
+    seconds: f64,
+    history: &[IterationMetrics],
+    advances: &[Advance],
+) {
+    let last = history.last();
+    println!("| iterations | {steps} | minutes | mean return | success (last iteration) | zone switches |");
+    println!("|---:|---:|---:|---:|---:|---:|");
+    println!(
+        "| {iterations} | {samples} | {:.1} | {:.2} | {:.1}% | {} |",
+        seconds / 60.0,
+        last.map_or(f32::NAN, |m| m.mean_return),
+        100.0 * last.and_then(|m| m.terms.first()).map_or(f32::NAN, |t| t.1),
+        advances.len()
+    );
+    for a in advances {
+        println!(
+            "curriculum: {} → {} after {} episodes (success {:.0}%)",
+            a.from,
+            a.to,
+            a.episode,
+            100.0 * a.success_rate
+        );
+    }
 }
 
 /// `meta eval` through the latent low level.
