@@ -133,6 +133,23 @@ fn a_latent_high_level_trains_and_evaluates_on_the_sitting_scenario() {
     assert_eq!(json["trials"].as_array().unwrap().len(), 9);
     assert!(out.join("report.md").exists() && out.join("trials.csv").exists());
 
+    // `run` on the latent scenario runs the latent high level, not the skills' controller.
+    let run_out = dir.join("run-out");
+    let ran = ok(&repertoire(&[
+        "run",
+        scenario.to_str().unwrap(),
+        "--meta",
+        meta.to_str().unwrap(),
+        "--trials",
+        "1",
+        "--out",
+        run_out.to_str().unwrap(),
+    ]));
+    assert!(ran.contains("latent high level") && ran.contains("| all | 3 |"), "{ran}");
+    assert!(run_out.join("report.json").exists());
+    let missing = ok(&repertoire(&["run", scenario.to_str().unwrap(), "--meta", dir.join("none").to_str().unwrap()]));
+    assert!(missing.contains("no latent high level is trained") && missing.contains("meta train"), "{missing}");
+
     // The same run again is the same evaluation (seeded starts, the policy's mean).
     let again = ok(&repertoire(&[
         "meta",

@@ -268,7 +268,10 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
 /// The scenario of `file` as a built scene and its latent model folder when it is driven
 /// through one: `--latent` when given, else the scenario's `low_level: Latent(..)`; `None` for
 /// the skills.
-fn latent_low_level(file: Option<&PathBuf>, flag: Option<PathBuf>) -> Result<Option<(Arc<WorldModel>, PathBuf)>> {
+pub(super) fn latent_low_level(
+    file: Option<&PathBuf>,
+    flag: Option<PathBuf>,
+) -> Result<Option<(Arc<WorldModel>, PathBuf)>> {
     let scenario = super::load_scenario(file)?;
     let Some(dir) = flag.or_else(|| scenario.latent_dir()) else {
         return Ok(None);
@@ -375,17 +378,17 @@ fn print_training(
 }
 
 /// `meta eval` through the latent low level.
-struct LatentEval {
-    library: PathBuf,
-    meta: Option<PathBuf>,
-    trials: usize,
-    zones: Vec<String>,
-    batch: usize,
-    seed: u64,
-    out: Option<PathBuf>,
+pub(super) struct LatentEval {
+    pub(super) library: PathBuf,
+    pub(super) meta: Option<PathBuf>,
+    pub(super) trials: usize,
+    pub(super) zones: Vec<String>,
+    pub(super) batch: usize,
+    pub(super) seed: u64,
+    pub(super) out: Option<PathBuf>,
 }
 
-fn eval_latent(model: Arc<WorldModel>, dir: &Path, a: LatentEval) -> Result<()> {
+pub(super) fn eval_latent(model: Arc<WorldModel>, dir: &Path, a: LatentEval) -> Result<()> {
     let meta = a.meta.unwrap_or_else(|| default_latent_meta(&model));
     let manifest = latent::read_manifest(&meta)?;
     let setup = Arc::new(

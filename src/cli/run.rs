@@ -2,8 +2,10 @@
 //!
 //! With a trained meta-controller (default: the committed `skills/library/meta`) this runs it
 //! with the skill library on the scenario and evaluates a quick number of trials per spawn
-//! zone, printing the sitting table. Without one it says how to train it and shows the scene
-//! with the character holding its standing pose under PD control.
+//! zone, printing the sitting table. A scenario driven through the latent low level
+//! (`low_level: Latent(..)`) runs its latent high level instead (default
+//! `skills/library/latent-meta-<scenario name>`). Without a trained controller it says how to
+//! train one and shows the scene with the character holding its standing pose under PD control.
 
 use anyhow::Result;
 use clap::Args;
@@ -43,6 +45,9 @@ pub struct RunArgs {
 }
 
 pub fn run(args: RunArgs) -> Result<()> {
+    if let Some((model, dir)) = super::meta::latent_low_level(args.file.as_ref(), None)? {
+        return run_latent(model, &dir, args);
+    }
     let meta = match &args.meta {
         Some(m) => m.clone(),
         None => default_meta(args.file.as_ref())?,
@@ -154,6 +159,42 @@ pub fn run(args: RunArgs) -> Result<()> {
     let wall = t0.elapsed().as_secs_f64();
     println!("simulated {steps} physics steps in {wall:.2} s ({:.0} steps/s)", steps as f64 / wall);
     Ok(())
+}
+
+/// `run` on a scenario whose low level is a latent model: a quick evaluation of its trained
+/// latent high level, or, without one, how to train it.
+fn run_latent(model: Arc<WorldModel>, dir: &std::path::Path, args: RunArgs) -> Result<()> {
+    let meta = args.meta.clone().unwrap_or_else(|| super::meta::default_latent_meta(&model));
+    let name = model.scenario.scenario.name.clone();
+    if !meta.join(repertoire_meta::latent::MANIFEST_FILE).exists() {
+        println!(
+            "scenario {name} runs through the latent model {}, but no latent high level is trained in {}: \
+             train one with `repertoire meta train {}`",
+            dir.display(),
+            meta.display(),
+            model.scenario.path.display()
+        );
+        return Ok(());
+    }
+    println!(
+        "scenario {name} — latent high level {} through {}; {} trials per zone",
+        meta.display(),
+        dir.display(),
+        args.trials
+    );
+    let zones = model.scenario.scenario.spawn.iter().map(|z| z.name.clone()).collect();
+    let secs = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
+    let out = args.out.unwrap_or_else(|| PathBuf::from(format!("runs/run-{secs}-s{}", args.seed)));
+    let eval = super::meta::LatentEval {
+        library: args.library,
+        meta: Some(meta),
+        trials: args.trials,
+        zones,
+        batch: 64,
+        seed: args.seed,
+        out: Some(out),
+    };
+    super::meta::eval_latent(model, dir, eval)
 }
 
 /// The meta-controller folder `run` looks in for `file`'s scenario (see
