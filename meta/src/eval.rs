@@ -14,6 +14,7 @@ use repertoire_report::{StartPoint, success_map, transition_matrix};
 use serde::{Deserialize, Serialize};
 
 use repertoire_scenes::Recording;
+use repertoire_scenes::world::PropPlacement;
 
 use crate::env::{MetaEnv, MetaSetup};
 use crate::error::{MetaError, Result};
@@ -209,23 +210,39 @@ pub fn save_worst(
 }
 
 fn trial_of(setup: &MetaSetup, env: &MetaEnv, index: usize, zone: &str, terms: &[f32], names: &[String]) -> Trial {
-    let chair = env.world().placements()[setup.task.frame_prop()];
-    let (x, y, _) = env.start;
-    // Side in the chair's frame: +y of the chair is its left.
-    let (s, c) = chair.yaw.sin_cos();
-    let local_x = c * (x - chair.pos[0]) + s * (y - chair.pos[1]);
-    let local_y = -s * (x - chair.pos[0]) + c * (y - chair.pos[1]);
-    Trial {
-        index,
-        zone: zone.to_string(),
-        start: env.start,
-        local_start: (local_x, local_y),
-        side: if local_y >= 0.0 { "left".into() } else { "right".into() },
-        success: terms[0] > 0.5,
-        fell: terms[2] > 0.5,
-        min_distance: f64::from(terms[1]),
-        seconds: f64::from(terms[3]),
-        skills: env.chosen.iter().map(|&c| names[c].clone()).collect(),
+    let frame = env.world().placements()[setup.task.frame_prop()];
+    let skills = env.chosen.iter().map(|&c| names[c].clone()).collect();
+    Trial::from_episode(index, zone, env.start, frame, terms, skills)
+}
+
+impl Trial {
+    /// A finished sitting trial from its start, the placement of the task's frame prop (the
+    /// chair) and the episode's figures (`terms`: success, min distance, fell, seconds, ...).
+    pub(crate) fn from_episode(
+        index: usize,
+        zone: &str,
+        start: (f64, f64, f64),
+        frame: PropPlacement,
+        terms: &[f32],
+        skills: Vec<String>,
+    ) -> Trial {
+        let (x, y, _) = start;
+        // Side in the chair's frame: +y of the chair is its left.
+        let (s, c) = frame.yaw.sin_cos();
+        let local_x = c * (x - frame.pos[0]) + s * (y - frame.pos[1]);
+        let local_y = -s * (x - frame.pos[0]) + c * (y - frame.pos[1]);
+        Trial {
+            index,
+            zone: zone.to_string(),
+            start,
+            local_start: (local_x, local_y),
+            side: if local_y >= 0.0 { "left".into() } else { "right".into() },
+            success: terms[0] > 0.5,
+            fell: terms[2] > 0.5,
+            min_distance: f64::from(terms[1]),
+            seconds: f64::from(terms[3]),
+            skills,
+        }
     }
 }
 

@@ -576,21 +576,6 @@ pub fn evaluate(
 }
 
 fn trial_of(setup: &LatentSetup, env: &LatentMetaEnv, index: usize, zone: &str, terms: &[f32]) -> Trial {
-    let chair = env.world().placements()[setup.task.frame_prop()];
-    let (x, y, _) = env.task().start;
-    let (s, c) = chair.yaw.sin_cos();
-    let local_x = c * (x - chair.pos[0]) + s * (y - chair.pos[1]);
-    let local_y = -s * (x - chair.pos[0]) + c * (y - chair.pos[1]);
-    Trial {
-        index,
-        zone: zone.to_string(),
-        start: env.task().start,
-        local_start: (local_x, local_y),
-        side: if local_y >= 0.0 { "left".into() } else { "right".into() },
-        success: terms[0] > 0.5,
-        fell: terms[2] > 0.5,
-        min_distance: f64::from(terms[1]),
-        seconds: f64::from(terms[3]),
-        skills: Vec::new(),
-    }
+    let frame = env.world().placements()[setup.task.frame_prop()];
+    Trial::from_episode(index, zone, env.task().start, frame, terms, Vec::new())
 }
