@@ -52,8 +52,28 @@ pub struct MetaSkill {
     pub frames: usize,
     /// Whether its clip loops.
     pub looping: bool,
+    /// Whether it holds its clip's last frame while chosen again (a sit stays seated) rather
+    /// than replaying the clip (a second turn).
+    pub holds: bool,
     /// Whether it observes a 2-D target (walk, stage 2).
     pub uses_target: bool,
+}
+
+impl MetaSkill {
+    /// The clip frame after `phase`: a looping clip wraps, a holding one stays on its last
+    /// frame, and any other stops there too (until [`MetaSkill::ended`] lets a new choice
+    /// restart it).
+    pub fn advance(&self, phase: usize) -> usize {
+        let frames = self.frames.max(2);
+        if self.looping { (phase + 1) % (frames - 1) } else { (phase + 1).min(frames - 1) }
+    }
+
+    /// Whether the skill's clip has played out at `phase`: the decision ends there, and
+    /// choosing the skill again replays it from its first frame. Never for looping clips, nor
+    /// for holding ones (a sit chosen again stays seated).
+    pub fn ended(&self, phase: usize) -> bool {
+        !self.looping && !self.holds && phase + 1 >= self.frames.max(2)
+    }
 }
 
 /// The scene, the skills and the graph, shared by every meta environment.
@@ -139,6 +159,7 @@ impl MetaSetup {
                 name: name.to_string(),
                 frames: s.manifest.clip.frames,
                 looping: s.manifest.spec.clip.looping,
+                holds: s.manifest.spec.clip.hold_s > 0.0,
                 uses_target,
                 layout,
                 policy: s.policy,
@@ -338,8 +359,7 @@ impl MetaEnv {
         // Skills are finite networks on finite observations; a diverged world ends the episode
         // through the fall test below.
         let _ = self.world.step(&self.targets);
-        let frames = skill.frames.max(2);
-        self.phase = if skill.looping { (self.phase + 1) % (frames - 1) } else { (self.phase + 1).min(frames - 1) };
+        self.phase = skill.advance(self.phase);
     }
 }
 
@@ -422,10 +442,7 @@ impl Env for MetaEnv {
         } else {
             self.current.unwrap_or_else(|| mask.iter().position(|&m| m).unwrap_or(0))
         };
-        let clip_over = |env: &Self, c: usize| {
-            let sk = &env.setup.skills[c];
-            !sk.looping && env.phase + 1 >= sk.frames.max(2)
-        };
+        let clip_over = |env: &Self, c: usize| env.setup.skills[c].ended(env.phase);
         if self.current == Some(option) && clip_over(self, option) {
             self.phase = 0;
         }

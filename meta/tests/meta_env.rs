@@ -110,6 +110,46 @@ fn a_turn_is_never_run_past_its_clip() {
 }
 
 #[test]
+fn a_sit_chosen_again_holds_its_seated_frame_while_a_turn_replays() {
+    let s = setup(None);
+    let (turn, sit) = (&s.skills[1], &s.skills[3]);
+    assert_eq!((turn.name.as_str(), sit.name.as_str()), ("turn_left", "sit"));
+    assert!(sit.holds && !turn.holds, "sit.ron holds its last frame, turn_left.ron does not");
+    let (last_turn, last_sit) = (turn.frames - 1, sit.frames - 1);
+    assert!(turn.ended(last_turn) && !turn.ended(last_turn - 1));
+    assert!(!sit.ended(last_sit), "a held clip never ends a decision early");
+    assert_eq!(sit.advance(last_sit), last_sit, "the seated frame is held");
+    assert_eq!(sit.advance(last_sit - 1), last_sit);
+
+    // In the environment: turn to the clip's end, then sit; every sit decision that does not
+    // end in a fall runs the full 0.5 s, past the clip's end, with the phase observed at 1.
+    let mut env = MetaEnv::new(Arc::clone(&s));
+    let mut rng = EnvRng::seed_from_u64(3);
+    let mut obs = vec![0.0; env.obs_dim()];
+    env.reset(&mut rng, &mut obs);
+    let phi = s.layout.size + s.task.extra_dim() + s.skills.len();
+    for _ in 0..12 {
+        if env.step(&[1.0, 0.0, 0.0], &mut obs).terminated {
+            return; // a barely trained turn may fall; the unit checks above still stand
+        }
+        if obs[phi] >= 1.0 {
+            break;
+        }
+    }
+    let decisions = (last_sit as f64 / 30.0).ceil() as usize + 2;
+    for d in 0..decisions {
+        let t0 = env.world().time();
+        let out = env.step(&[3.0, 0.0, 0.0], &mut obs);
+        if out.terminated || out.truncated {
+            return;
+        }
+        assert!((env.world().time() - t0 - 0.5).abs() < 1e-5, "sit decision {d} was cut short");
+        let expected = ((d + 1) * 30).min(last_sit) as f32 / last_sit as f32;
+        assert!((obs[phi] - expected).abs() < 1e-6, "decision {d}: phase {} for {expected}", obs[phi]);
+    }
+}
+
+#[test]
 fn training_writes_a_controller_and_evaluation_is_reproducible() {
     let s = setup(Some(SkillGraph::chain(&["walk", "turn_left", "sit"])));
     let dir = std::env::temp_dir().join(format!("repertoire-meta-train-{}", std::process::id()));

@@ -150,7 +150,7 @@ pub fn rollout(
     let mut noise = EnvRng::seed_from_u64(opts.seed ^ 0x006e_6f69_7365);
     let im = settings.imitation;
     let frames = settings.reference.frames() as u32;
-    let looping = settings.reference.looping;
+    let (looping, hold) = (settings.reference.looping, settings.reference.hold_steps as u32);
     let mut started = 0u64;
     let mut transitions = 0u64;
     let may_start = |started: u64| match opts.budget {
@@ -172,7 +172,7 @@ pub fn rollout(
         *episode = *started;
         *started += 1;
         *start_frame = env.task().phase() as u32;
-        let left = if looping { setup.max_steps } else { (frames - 1 - *start_frame).min(setup.max_steps) };
+        let left = if looping { setup.max_steps } else { (frames - 1 - *start_frame + hold).min(setup.max_steps) };
         *max_len = left.max(1);
         ctrl.begin(i);
     };

@@ -117,7 +117,7 @@ pub fn evaluate(
         f64::from(im.pose.weight + im.velocity.weight + im.end_effector.weight + im.root.weight + goal)
     };
     let frames = settings.reference.frames() as u32;
-    let looping = settings.reference.looping;
+    let (looping, hold) = (settings.reference.looping, settings.reference.hold_steps as u32);
     let mut report = EvalReport {
         skill: setup.spec.spec.name.clone(),
         start,
@@ -134,8 +134,11 @@ pub fn evaluate(
     let begin = |env: &mut HumanoidEnv<ImitationTask>, rng: &mut EnvRng, o: &mut [f32]| -> u32 {
         env.reset(rng, o);
         // The longest this episode can run: to the clip's end, or the time limit.
-        let left =
-            if looping { setup.max_steps } else { (frames - 1 - env.task().phase() as u32).min(setup.max_steps) };
+        let left = if looping {
+            setup.max_steps
+        } else {
+            (frames - 1 - env.task().phase() as u32 + hold).min(setup.max_steps)
+        };
         left.max(1)
     };
     for i in 0..batch {

@@ -69,6 +69,8 @@ pub struct ImitationTask {
     phase: usize,
     /// Completed cycles of a looping clip.
     cycles: usize,
+    /// Steps the last frame of a holding clip has been held.
+    held: usize,
     /// Clip-to-world transform of this episode: rotate by `yaw` about +z, then map the clip's
     /// point `anchor` to `origin`.
     yaw: f64,
@@ -93,6 +95,7 @@ impl ImitationTask {
             settings,
             phase: 0,
             cycles: 0,
+            held: 0,
             yaw: 0.0,
             anchor: [0.0; 2],
             origin: [0.0; 2],
@@ -315,6 +318,7 @@ impl ImitationTask {
         self.start_frame = f;
         self.start_heading = world.heading();
         self.cycles = 0;
+        self.held = 0;
         self.last_distance = self.goal_distance(world);
     }
 
@@ -544,6 +548,7 @@ impl Task for ImitationTask {
         }
         self.place_object(world, rng);
         self.cycles = 0;
+        self.held = 0;
         self.start_frame = self.phase;
         self.start_heading = world.heading();
         if let Goal::Target { distance_m, azimuth_deg, .. } = settings.goal {
@@ -566,8 +571,12 @@ impl Task for ImitationTask {
                 self.cycles += 1;
             }
         } else {
-            self.phase = (self.phase + 1).min(r.frames() - 1);
-            done_with_clip = self.phase == r.frames() - 1;
+            let last = r.frames() - 1;
+            if self.phase == last {
+                self.held += 1;
+            }
+            self.phase = (self.phase + 1).min(last);
+            done_with_clip = self.phase == last && self.held >= r.hold_steps;
         }
         let mut out = self.score(world, self.phase);
         out.truncated = done_with_clip && !out.terminated;
@@ -588,12 +597,13 @@ impl Task for ImitationTask {
             self.target[0],
             self.target[1],
             self.last_distance,
+            self.held as f64,
         ]);
     }
 
     fn restore(&mut self, s: &[f64]) -> Result<(), String> {
-        if s.len() != 12 {
-            return Err(format!("imitation task snapshot has {} values, expected 12", s.len()));
+        if s.len() != 13 {
+            return Err(format!("imitation task snapshot has {} values, expected 13", s.len()));
         }
         self.phase = s[0] as usize;
         self.cycles = s[1] as usize;
@@ -604,6 +614,7 @@ impl Task for ImitationTask {
         self.start_frame = s[8] as usize;
         self.target = [s[9], s[10]];
         self.last_distance = s[11];
+        self.held = s[12] as usize;
         if self.phase >= self.settings.reference.frames() {
             return Err(format!("phase {} is past the clip's {} frames", self.phase, self.settings.reference.frames()));
         }

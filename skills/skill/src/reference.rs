@@ -25,6 +25,8 @@ pub struct Reference {
     pub dt: f64,
     /// Whether the clip is a cycle (the phase wraps instead of ending).
     pub looping: bool,
+    /// Control steps the last frame is held once the clip has played (`ClipRef::hold_s`).
+    pub hold_steps: usize,
     /// Actuated joints per frame.
     pub dof: usize,
     /// Actuated joint angles, `frames × dof`, body-map order.
@@ -80,6 +82,7 @@ impl Reference {
             clip_hash: clip.content_hash(),
             dt: 1.0 / control_hz,
             looping: clip.looping,
+            hold_steps: 0,
             dof,
             joints: Vec::with_capacity(n * dof),
             joint_vel: Vec::with_capacity(n * dof),

@@ -88,6 +88,7 @@ impl SkillSetup {
             .map_err(|m| SkillError::Invalid(format!("{}: {m}", spec.path.display())))?;
         let control_hz = f64::from(model.scenario.scenario.rates.control_hz);
         let mut reference = Reference::new(&clip, &body, control_hz)?;
+        reference.hold_steps = (s.clip.hold_s * control_hz).round() as usize;
         if s.clip.seat_lift_m != 0.0 {
             if !s.clip.seat_lift_m.is_finite() || s.clip.seat_lift_m.abs() > 0.5 {
                 return Err(SkillError::Invalid(format!(
@@ -147,7 +148,7 @@ impl SkillSetup {
         let max_steps = if reference.looping {
             (s.episode_s * control_hz).round() as u32
         } else {
-            ((reference.frames() - 1) as u32).min((s.episode_s * control_hz).round() as u32)
+            ((reference.frames() - 1 + reference.hold_steps) as u32).min((s.episode_s * control_hz).round() as u32)
         };
         let layout = Arc::new(ObservationLayout::new(&model, &s.features)?);
         let settings = Arc::new(TaskSettings {

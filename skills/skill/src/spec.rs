@@ -32,6 +32,12 @@ pub struct ClipRef {
     /// Treat the clip as a cycle whose phase wraps.
     #[serde(default)]
     pub looping: bool,
+    /// Hold the clip's last frame this long (s) once it has played: training episodes and
+    /// `skill eval` trials run on that long past the clip's end (within `episode_s`), and a
+    /// meta-controller that keeps choosing the skill keeps holding the pose (a sit stays
+    /// seated) instead of replaying the clip from its first frame (a turn). 0: no hold.
+    #[serde(default)]
+    pub hold_s: f64,
     /// Raise the root by up to this much (m), in proportion to how low the clip sits: fully
     /// at its lowest frame, not at all at its highest. For a sit clip whose actor sat lower
     /// than this body's pelvis can rest on the scene's chair.
@@ -316,7 +322,8 @@ pub struct SkillSpec {
     /// Early termination.
     #[serde(default)]
     pub termination: Termination,
-    /// Episode time limit for looping clips (s); other clips end with the clip.
+    /// Episode time limit (s): looping clips run this long, others end with the clip (and its
+    /// hold) or this, whichever comes first.
     pub episode_s: f64,
     /// PPO iterations of `skill train`.
     pub iterations: usize,
@@ -368,6 +375,12 @@ impl SpecFile {
             && !(0.0 <= a && a < b)
         {
             return bad(format!("clip cut_s ({a}, {b}) must satisfy 0 ≤ start < end"));
+        }
+        if !(spec.clip.hold_s.is_finite() && spec.clip.hold_s >= 0.0) {
+            return bad(format!("clip hold_s must be finite and ≥ 0, got {}", spec.clip.hold_s));
+        }
+        if spec.clip.looping && spec.clip.hold_s > 0.0 {
+            return bad("clip cannot both loop and hold its last frame (`looping` and `hold_s`)".into());
         }
         if let Init::Pools { fraction, from } = &spec.init {
             if !(0.0..=1.0).contains(fraction) {
