@@ -6,8 +6,11 @@
 #   3. `skill eval` over TRIALS trials from the clip start and from predecessors' end poses
 #      (which also writes each skill's end-pose pool, used by the next stage).
 # The stage-one library is kept beside it as LIBRARY-stage1 (for the no-fine-tuning ablation).
+# Sit is fine-tuned in two rounds: SIT_FINETUNE_ITERS (600) iterations with 70 % of the episodes
+# from the turns' end poses, then SIT_FINETUNE2_ITERS (1000) more with 60 % (the rest keep
+# reference-state starts, so that sitting from a standing start is not forgotten).
 # Usage: bash scripts/train-library.sh [LIBRARY] — env: TRIALS (1000), TURN_FINETUNE_ITERS (400),
-# SIT_FINETUNE_ITERS (the spec's),
+# SIT_FINETUNE_ITERS (600), SIT_FINETUNE2_ITERS (1000; 0 skips the second round),
 # EXTRA (more arguments for every train/finetune, e.g. "--envs 8").
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -30,5 +33,8 @@ for s in turn_left turn_right; do
   "$bin" skill finetune "$specs/$s.ron" --from walk --library "$lib" --iterations "${TURN_FINETUNE_ITERS:-400}" "${extra[@]}"
   "$bin" skill eval "$specs/$s.ron" --library "$lib" --trials "$trials" --from walk
 done
-"$bin" skill finetune "$specs/sit.ron" --from turn_left,turn_right --library "$lib" ${SIT_FINETUNE_ITERS:+--iterations "$SIT_FINETUNE_ITERS"} "${extra[@]}"
+"$bin" skill finetune "$specs/sit.ron" --from turn_left,turn_right --library "$lib" --fraction 0.7 --iterations "${SIT_FINETUNE_ITERS:-600}" "${extra[@]}"
+if [ "${SIT_FINETUNE2_ITERS:-1000}" != 0 ]; then
+  "$bin" skill finetune "$specs/sit.ron" --from turn_left,turn_right --library "$lib" --fraction 0.6 --iterations "${SIT_FINETUNE2_ITERS:-1000}" "${extra[@]}"
+fi
 "$bin" skill eval "$specs/sit.ron" --library "$lib" --trials "$trials" --from turn_left,turn_right
