@@ -54,7 +54,7 @@ fn tiny_controller(setup: &Arc<MetaSetup>, tag: &str) -> (PathBuf, repertoire_le
 fn the_warehouse_evaluation_counts_phases_and_maps_pick_ups() {
     let s = walking(
         "warehouse",
-        r#"skills: ["walk", "turn_left", "turn_right", "lift", "carry", "put_down"]"#,
+        r#"skills: ["walk", "turn_left", "turn_right", "lift", "put_down"]"#,
         "time_limit_s: 15.0",
         2.0,
     );

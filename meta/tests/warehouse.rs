@@ -197,7 +197,7 @@ fn walking_setup(start_phases: &str) -> Arc<MetaSetup> {
     let text = std::fs::read_to_string(root().join("scenes/warehouse.ron")).unwrap();
     let text = text
         .replace(
-            r#"skills: ["walk", "turn_left", "turn_right", "lift", "carry", "put_down"]"#,
+            r#"skills: ["walk", "turn_left", "turn_right", "lift", "put_down"]"#,
             r#"skills: ["walk", "turn_left", "turn_right"]"#,
         )
         .replace("start_phases: [Goto, Lift, Carry, PutDown]", &format!("start_phases: [{start_phases}]"));
@@ -291,7 +291,7 @@ fn a_library_without_the_warehouse_skills_is_refused_naming_them() {
     let model = Arc::new(WorldModel::build(file).unwrap());
     let graph = SkillGraph::of(&model.scenario.scenario);
     let err = MetaSetup::new(model, &lib, graph).err().expect("skills are missing").to_string();
-    assert!(err.contains("warehouse.ron") && err.contains("turn_left, turn_right, lift, carry, put_down"), "{err}");
+    assert!(err.contains("warehouse.ron") && err.contains("turn_left, turn_right, lift, put_down"), "{err}");
     assert!(err.contains("(it has: walk)") && err.contains("--skills"), "{err}");
     let _ = std::fs::remove_dir_all(&lib);
 }
