@@ -61,6 +61,7 @@ fn report_gathers_warehouse_and_toss_evaluations() {
             successes: vec![vec![Some(0), Some(1)], vec![None, Some(2)]],
             reached: vec![vec![Some(1), Some(2)], vec![None, Some(2)]],
         }),
+        recorded: Vec::new(),
     };
     warehouse.write(&dir.join("warehouse")).unwrap();
     let throw = |v_x: f64, caught: bool| TossTrial {
@@ -78,6 +79,7 @@ fn report_gathers_warehouse_and_toss_evaluations() {
         lateral: vec![0.0],
         trials: 1,
         throws: vec![throw(2.0, true), throw(4.0, false)],
+        recorded: Vec::new(),
     };
     toss.write(&dir.join("toss")).unwrap();
     let w = dir.join("warehouse");
