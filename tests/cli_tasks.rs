@@ -10,6 +10,7 @@ fn scene_check_accepts_the_warehouse_and_the_toss() {
     let out = ok(&repertoire(&["scene", "check", "scenes/warehouse.ron"]));
     assert!(out.contains("pedestal_a") && out.contains("2.5..3.5 m at -45..45°") && out.ends_with("ok\n"), "{out}");
     assert!(out.contains("Warehouse: move `box`") && out.contains("reach 0.65 m, 4 resting contacts"), "{out}");
+    assert!(out.contains("bind      skills' props: pedestal → the focal pedestal"), "{out}");
     let out = ok(&repertoire(&["scene", "check", "scenes/toss.ron"]));
     assert!(out.contains("Toss: catch `ball`") && out.contains("v_x 1.5..4.5 m/s") && out.ends_with("ok\n"), "{out}");
 }
@@ -27,7 +28,7 @@ fn meta_commands_name_the_missing_warehouse_and_toss_skills() {
     }
     let lib = lib.display().to_string();
     for (file, missing) in [
-        ("scenes/warehouse.ron", "turn_left, turn_right, lift, carry, put_down"),
+        ("scenes/warehouse.ron", "turn_left, turn_right, lift, put_down"),
         ("scenes/toss.ron", "turn_left, turn_right, catch, put_down"),
     ] {
         for cmd in ["train", "eval"] {
@@ -61,6 +62,7 @@ fn report_gathers_warehouse_and_toss_evaluations() {
             successes: vec![vec![Some(0), Some(1)], vec![None, Some(2)]],
             reached: vec![vec![Some(1), Some(2)], vec![None, Some(2)]],
         }),
+        recorded: Vec::new(),
     };
     warehouse.write(&dir.join("warehouse")).unwrap();
     let throw = |v_x: f64, caught: bool| TossTrial {
@@ -78,6 +80,7 @@ fn report_gathers_warehouse_and_toss_evaluations() {
         lateral: vec![0.0],
         trials: 1,
         throws: vec![throw(2.0, true), throw(4.0, false)],
+        recorded: Vec::new(),
     };
     toss.write(&dir.join("toss")).unwrap();
     let w = dir.join("warehouse");
@@ -95,4 +98,35 @@ fn report_gathers_warehouse_and_toss_evaluations() {
         page.contains("Toss evaluation") && page.contains("(strike_zone.png)") && page.contains("| 2 | 50.0% |"),
         "{page}"
     );
+}
+
+#[test]
+fn warehouse_evaluations_record_their_worst_episodes() {
+    // A one-iteration controller over the committed library's warehouse skills.
+    let dir = temp_dir("warehouse-worst");
+    let meta = dir.join("meta");
+    let (meta_s, run_s) = (meta.to_str().unwrap(), dir.join("run").display().to_string());
+    let args = ["meta", "train", "scenes/warehouse.ron", "--iterations", "1", "--envs", "2", "--out", meta_s];
+    ok(&repertoire(&[&args[..], &["--run-dir", &run_s]].concat()));
+    let eval = dir.join("eval");
+    let eval_s = eval.to_str().unwrap();
+    let args = ["--meta", meta_s, "--trials", "4", "--grid", "0", "--worst", "2", "--out", eval_s];
+    let out = ok(&repertoire(&[&["meta", "eval", "scenes/warehouse.ron"][..], &args[..]].concat()));
+    assert!(out.contains("2 worst episodes recorded"), "{out}");
+    let recs: Vec<_> = std::fs::read_dir(eval.join("worst"))
+        .unwrap()
+        .filter_map(|e| e.ok().map(|e| e.file_name().to_string_lossy().into_owned()))
+        .filter(|n| n.ends_with(".rec"))
+        .collect();
+    assert_eq!(recs.len(), 2, "{recs:?}");
+    let md = std::fs::read_to_string(eval.join("report.md")).unwrap();
+    for r in &recs {
+        assert!(md.contains(&format!("| worst/{r} |")), "{r} listed in {md}");
+    }
+    // `run` on the warehouse records its worst episodes too.
+    let run = dir.join("run-out");
+    let args = ["run", "scenes/warehouse.ron", "--meta", meta_s, "--trials", "3", "--out", run.to_str().unwrap()];
+    ok(&repertoire(&args));
+    let md = std::fs::read_to_string(run.join("report.md")).unwrap();
+    assert!(md.contains("worst episodes") && run.join("worst").read_dir().unwrap().count() >= 3, "{md}");
 }

@@ -10,6 +10,10 @@
 //! at the spawn point and heading the zone draws; without such a pool, standing still. A task
 //! may place the character itself (a warehouse episode starting in LIFT, CARRY or PUTDOWN).
 //!
+//! The props a skill observes are named after its training scene; the scenario's `bind` map
+//! resolves them here ([`crate::bind`]): a warehouse binds lift's `"pedestal"` to the focal
+//! pedestal, read when the skill starts playing and held while it plays.
+//!
 //! A skill whose clip does not loop (a turn cycle, the sit-down) is never run past its clip's
 //! end, where its policy was never trained: the decision ends early there, and choosing the
 //! same skill again plays its clip once more from the start.
@@ -31,6 +35,7 @@ use repertoire_skill::pool::Pool;
 use repertoire_skill::reference::to_heading;
 use repertoire_skill::spec::Goal;
 
+use crate::bind::SkillProps;
 use crate::error::{MetaError, Result};
 use crate::graph::SkillGraph;
 use crate::task::{EpisodeOverride, TaskSpec, TaskState};
@@ -48,6 +53,8 @@ pub struct MetaSkill {
     pub policy: ActingPolicy,
     /// Its observation layout on this scene.
     pub layout: ObservationLayout,
+    /// The scene's props its prop features read (bound by the scenario's `bind` map).
+    pub props: SkillProps,
     /// Frames of its clip at the control rate.
     pub frames: usize,
     /// Whether its clip loops.
@@ -152,8 +159,8 @@ impl MetaSetup {
                 }
             }
             let s: LibrarySkill = library::load(library, name)?;
-            s.check_fits(&model)?;
-            let layout = ObservationLayout::new(&model, &s.manifest.observation.features)?;
+            let (layout, props) = SkillProps::resolve(&model, &task, name, &s.manifest.observation.features)?;
+            s.check_fits_layout(&model, &layout)?;
             let uses_target = matches!(s.manifest.spec.goal, Goal::Target { .. });
             skills.push(MetaSkill {
                 name: name.to_string(),
@@ -162,6 +169,7 @@ impl MetaSetup {
                 holds: s.manifest.spec.clip.hold_s > 0.0,
                 uses_target,
                 layout,
+                props,
                 policy: s.policy,
             });
         }
@@ -210,6 +218,8 @@ pub struct MetaEnv {
     decisions: u32,
     switches: u32,
     skill_obs: Vec<f32>,
+    /// Per skill: the props its prop features read in this episode (see [`SkillProps`]).
+    bound: Vec<Vec<usize>>,
     skill_act: Vec<f32>,
     targets: Vec<f64>,
     lo: Vec<f32>,
@@ -246,6 +256,7 @@ impl MetaEnv {
             decisions: 0,
             switches: 0,
             skill_obs: vec![0.0; widest],
+            bound: setup.skills.iter().map(|s| s.props.ids.clone()).collect(),
             skill_act: vec![0.0; dof],
             targets: vec![0.0; dof],
             lo: vec![0.0, -3.0, -3.0],
@@ -336,12 +347,25 @@ impl MetaEnv {
         self.phase as f64 / (self.setup.skills[skill].frames.max(2) - 1) as f64
     }
 
-    /// One control tick of skill `c`.
-    fn tick(&mut self, c: usize) {
+    /// The props skill `c`'s prop features read now, in feature order (its `bind`ings).
+    pub fn bound_props(&self, c: usize) -> &[usize] {
+        &self.bound[c]
+    }
+
+    /// Re-reads skill `c`'s role-bound props from the task state (when it starts playing).
+    fn bind_props(&mut self, c: usize) {
+        let props = &self.setup.skills[c].props;
+        if props.has_roles() {
+            props.refresh(&self.setup.task, &self.task, &mut self.bound[c]);
+        }
+    }
+
+    /// Writes what skill `c`'s policy observes now into `obs` (its policy's input width): its
+    /// layout over its bound props, its clip phase, and the target when it takes one.
+    pub fn skill_observation(&self, c: usize, obs: &mut [f32]) {
         let skill = &self.setup.skills[c];
         let n = skill.layout.size;
-        let obs = &mut self.skill_obs[..skill.policy.obs_dim()];
-        self.world.observe(&skill.layout, &mut obs[..n]);
+        self.world.observe_props(&skill.layout, &self.bound[c], &mut obs[..n]);
         let phi = self.phase as f64 / (skill.frames.max(2) - 1) as f64;
         obs[n] = (TAU * phi).sin() as f32;
         obs[n + 1] = (TAU * phi).cos() as f32;
@@ -354,7 +378,16 @@ impl MetaEnv {
             obs[n + 4] = psi.cos() as f32;
             obs[n + 5] = (d[0] * d[0] + d[1] * d[1]).sqrt() as f32;
         }
-        self.policies[c].act(obs, &mut self.skill_act);
+    }
+
+    /// One control tick of skill `c`.
+    fn tick(&mut self, c: usize) {
+        let width = self.setup.skills[c].policy.obs_dim();
+        let mut obs = std::mem::take(&mut self.skill_obs);
+        self.skill_observation(c, &mut obs[..width]);
+        self.policies[c].act(&obs[..width], &mut self.skill_act);
+        self.skill_obs = obs;
+        let skill = &self.setup.skills[c];
         self.map.targets(&self.skill_act, &mut self.targets);
         // Skills are finite networks on finite observations; a diverged world ends the episode
         // through the fall test below.
@@ -423,6 +456,9 @@ impl Env for MetaEnv {
             self.chosen.push(*k);
         }
         self.task.begin(&self.setup.task, &mut self.world, rng, &self.over);
+        for c in 0..self.setup.skills.len() {
+            self.bind_props(c);
+        }
         if let Some((options, recorder)) = self.record.as_mut() {
             *recorder = Recorder::new(&self.setup.model, options.clone());
         }
@@ -445,9 +481,11 @@ impl Env for MetaEnv {
         let clip_over = |env: &Self, c: usize| env.setup.skills[c].ended(env.phase);
         if self.current == Some(option) && clip_over(self, option) {
             self.phase = 0;
+            self.bind_props(option);
         }
         if self.current != Some(option) {
             self.phase = 0;
+            self.bind_props(option);
             self.switches += u32::from(self.current.is_some());
             self.current = Some(option);
             self.chosen.push(option);
@@ -513,14 +551,25 @@ impl Env for MetaEnv {
             f64::from(self.switches),
         ]);
         out.extend(self.task.snapshot());
+        for (c, ids) in self.bound.iter().enumerate() {
+            if self.setup.skills[c].props.has_roles() {
+                out.extend(ids.iter().map(|&p| p as f64));
+            }
+        }
         out
     }
 
     fn restore(&mut self, state: &[f64]) -> std::result::Result<(), String> {
         let w = self.world.snapshot_len();
-        let want = w + 6 + self.task.snapshot_len();
+        let roles: usize = self.setup.skills.iter().filter(|s| s.props.has_roles()).map(|s| s.props.ids.len()).sum();
+        let want = w + 6 + self.task.snapshot_len() + roles;
         if state.len() != want {
             return Err(format!("meta snapshot has {} values, expected {want}", state.len()));
+        }
+        let props = self.setup.model.props.len();
+        let tail = w + 6 + self.task.snapshot_len();
+        if let Some(v) = state[tail..].iter().find(|v| !(v.is_finite() && **v >= 0.0 && (**v as usize) < props)) {
+            return Err(format!("meta snapshot binds a skill's prop to {v}, not one of the {props} props"));
         }
         self.world.restore(&state[..w]).map_err(|e| e.to_string())?;
         let s = &state[w..];
@@ -529,7 +578,16 @@ impl Env for MetaEnv {
         self.target = [s[2], s[3]];
         self.decisions = s[4] as u32;
         self.switches = s[5] as u32;
-        self.task.restore(&s[6..]);
+        let t = self.task.snapshot_len();
+        self.task.restore(&s[6..6 + t]);
+        let mut bound = s[6 + t..].iter();
+        for (c, ids) in self.bound.iter_mut().enumerate() {
+            if self.setup.skills[c].props.has_roles() {
+                for (id, v) in ids.iter_mut().zip(bound.by_ref()) {
+                    *id = *v as usize;
+                }
+            }
+        }
         Ok(())
     }
 }

@@ -2,6 +2,7 @@
 //! the meta-controller environment over frozen skills, its training and evaluation, and the
 //! latent low level ([`latent`]) as the alternative to the skills.
 
+pub mod bind;
 pub mod env;
 pub mod error;
 pub mod eval;

@@ -132,6 +132,15 @@ impl TaskSpec {
         }
     }
 
+    /// The prop the focal pedestal role ([`repertoire_scenes::scenario::PropBinding::Focal`])
+    /// names before an episode runs (the box's first pedestal); `None`: the task has no such role.
+    pub fn focal_home(&self) -> Option<usize> {
+        match self {
+            TaskSpec::Warehouse(w) => Some(w.pedestals[w.home]),
+            TaskSpec::Sit { .. } | TaskSpec::Toss(_) => None,
+        }
+    }
+
     /// Whether an episode ends as soon as it succeeds (sitting); the warehouse and the toss run
     /// to the time limit, collecting reward.
     pub fn ends_on_success(&self) -> bool {
@@ -275,6 +284,15 @@ impl TaskState {
                 judge.failed
             }
             _ => false,
+        }
+    }
+
+    /// The focal pedestal's prop now (the box's pedestal during GOTO and LIFT, the target's
+    /// during CARRY and PUTDOWN); `None` outside the warehouse.
+    pub fn focal_prop(&self, spec: &TaskSpec) -> Option<usize> {
+        match (spec, self) {
+            (TaskSpec::Warehouse(w), TaskState::Warehouse(judge)) => w.pedestals.get(judge.focal()).copied(),
+            _ => None,
         }
     }
 

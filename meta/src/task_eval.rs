@@ -2,10 +2,12 @@
 //! warehouse phases completed per episode by start phase, and a pick-up success map over a grid
 //! of start positions around the box's pedestal; toss catch rate and return over a grid of ball
 //! speeds (the paper's "strike zone"). Every episode is seeded by its index, so a report is
-//! reproducible; each is written as Markdown, CSV, JSON and PNG/SVG maps.
+//! reproducible; each is written as Markdown, CSV, JSON and PNG/SVG maps. The worst episodes
+//! (fewest phases, or no catch, then the lowest return) can be run again recorded
+//! ([`save_worst_warehouse`], [`save_worst_toss`]) and watched in the browser replay.
 
 use std::fmt::Write as _;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use rand::SeedableRng;
@@ -13,6 +15,7 @@ use rayon::prelude::*;
 use repertoire_learn::acting::ActingHybrid;
 use repertoire_learn::env::{Env, EnvRng};
 use repertoire_report::grid_map;
+use repertoire_scenes::Recording;
 use repertoire_scenes::scenario::WarehousePhase;
 use serde::{Deserialize, Serialize};
 
@@ -38,7 +41,22 @@ fn run_episode(
     seed: u64,
     stream: u64,
 ) -> Ended {
+    run_recorded(setup, controller, over, seed, stream, None).0
+}
+
+/// [`run_episode`], recorded at the control rate under `title` when one is given.
+fn run_recorded(
+    setup: &Arc<MetaSetup>,
+    controller: &ActingHybrid,
+    over: EpisodeOverride,
+    seed: u64,
+    stream: u64,
+    title: Option<String>,
+) -> (Ended, Option<Recording>) {
     let mut env = MetaEnv::new(Arc::clone(setup));
+    if let Some(title) = title {
+        env.record_episodes(title);
+    }
     env.set_override(over);
     let mut ctl = controller.clone();
     let mut rng = EnvRng::seed_from_u64(seed);
@@ -54,12 +72,13 @@ fn run_episode(
         let out = env.step(&act, &mut obs);
         episode_return += f64::from(out.reward);
         if out.terminated || out.truncated {
-            return Ended {
+            let ended = Ended {
                 task: env.task().clone(),
                 fell: out.terms[2] > 0.5,
                 seconds: f64::from(out.terms[3]),
                 episode_return,
             };
+            return (ended, env.recording());
         }
     }
 }
@@ -163,6 +182,10 @@ pub struct WarehouseReport {
     pub trials: Vec<WarehouseTrial>,
     /// The pick-up map, when asked for.
     pub pickup: Option<PickupMap>,
+    /// Recordings of the worst episodes, relative to the report's folder (see
+    /// [`save_worst_warehouse`]).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub recorded: Vec<String>,
 }
 
 /// Runs `episodes` warehouse episodes drawn as in training (start phases included) and, with
@@ -254,7 +277,70 @@ pub fn evaluate_warehouse(
         }
         PickupMap { grid: g, xs, ys, successes, reached }
     });
-    Ok(WarehouseReport { rows, trials, pickup })
+    Ok(WarehouseReport { rows, trials, pickup, recorded: Vec::new() })
+}
+
+/// The `n` worst episodes of the phase table: fewest phases completed, then the lowest return
+/// (then the lowest index).
+pub fn worst_warehouse(report: &WarehouseReport, n: usize) -> Vec<&WarehouseTrial> {
+    let mut sorted: Vec<&WarehouseTrial> = report.trials.iter().collect();
+    sorted.sort_by(|a, b| {
+        a.phases.cmp(&b.phases).then(a.episode_return.total_cmp(&b.episode_return)).then(a.index.cmp(&b.index))
+    });
+    sorted.truncate(n);
+    sorted
+}
+
+/// Runs the `n` worst episodes of `report` (an [`evaluate_warehouse`] with `seed`) again,
+/// recorded, into `dir` as `<start phase>_<index>.rec`, and lists them in the report
+/// (`recorded`, relative to `report_dir`); a rerun that ends differently is an error. Returns
+/// the files written.
+pub fn save_worst_warehouse(
+    setup: &Arc<MetaSetup>,
+    controller: &ActingHybrid,
+    report: &mut WarehouseReport,
+    seed: u64,
+    n: usize,
+    dir: &Path,
+    report_dir: &Path,
+) -> Result<Vec<PathBuf>> {
+    let worst: Vec<WarehouseTrial> = worst_warehouse(report, n).into_iter().cloned().collect();
+    let mut written = Vec::new();
+    for t in &worst {
+        let title = format!(
+            "warehouse, episode {} from {} (seed {seed}): {} phase{}",
+            t.index,
+            t.start_phase,
+            t.phases,
+            if t.phases == 1 { "" } else { "s" }
+        );
+        let stream = t.index as u64 + 1;
+        let (e, rec) = run_recorded(setup, controller, EpisodeOverride::default(), seed, stream, Some(title));
+        let TaskState::Warehouse(j) = &e.task else { unreachable!("a warehouse setup") };
+        if j.completed != t.phases || e.fell != t.fell || (e.episode_return - t.episode_return).abs() > 1e-6 {
+            return Err(MetaError::Invalid(format!(
+                "warehouse episode {} did not replay the same ({} phases, return {:.3}; then {}, {:.3})",
+                t.index, t.phases, t.episode_return, j.completed, e.episode_return
+            )));
+        }
+        let rec = rec.ok_or_else(|| MetaError::Invalid("the rerun was not recorded".into()))?;
+        written.push(save_recording(rec, dir, &format!("{}_{}.rec", t.start_phase.to_lowercase(), t.index))?);
+    }
+    report.recorded = relative(&written, report_dir);
+    Ok(written)
+}
+
+/// Saves `rec` as `dir/name` (created when missing; written atomically).
+fn save_recording(rec: Recording, dir: &Path, name: &str) -> Result<PathBuf> {
+    std::fs::create_dir_all(dir).map_err(|e| MetaError::Invalid(format!("{}: cannot create: {e}", dir.display())))?;
+    let path = dir.join(name);
+    rec.save(&path)?;
+    Ok(path)
+}
+
+/// `files` relative to `base` where they lie under it, else as given.
+fn relative(files: &[PathBuf], base: &Path) -> Vec<String> {
+    files.iter().map(|f| f.strip_prefix(base).unwrap_or(f).display().to_string()).collect()
 }
 
 impl WarehouseReport {
@@ -301,6 +387,21 @@ impl WarehouseReport {
                         .collect();
                     let _ = writeln!(s, "| {y:.2} | {} |", cells.join(" | "));
                 }
+            }
+        }
+        if !self.recorded.is_empty() {
+            let _ = writeln!(
+                s,
+                "\nworst episodes (fewest phases, then lowest return), recorded (watch: `repertoire replay FILE`):\n"
+            );
+            let _ = writeln!(s, "| recording | start phase | phases | return | seconds | fell | box dropped |");
+            let _ = writeln!(s, "|---|---|---:|---:|---:|---|---|");
+            for (file, t) in self.recorded.iter().zip(worst_warehouse(self, self.recorded.len())) {
+                let _ = writeln!(
+                    s,
+                    "| {file} | {} | {} | {:.2} | {:.2} | {} | {} |",
+                    t.start_phase, t.phases, t.episode_return, t.seconds, t.fell, t.dropped
+                );
             }
         }
         s
@@ -391,6 +492,10 @@ pub struct TossReport {
     pub trials: usize,
     /// Every throw.
     pub throws: Vec<TossTrial>,
+    /// Recordings of the worst throws, relative to the report's folder (see
+    /// [`save_worst_toss`]).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub recorded: Vec<String>,
 }
 
 /// Throws `trials` balls at each of `n_vx × n_lateral` speed cells spanning the scenario's
@@ -433,7 +538,51 @@ pub fn evaluate_toss(
             }
         })
         .collect();
-    Ok(TossReport { v_x, lateral, trials, throws })
+    Ok(TossReport { v_x, lateral, trials, throws, recorded: Vec::new() })
+}
+
+/// The `n` worst throws: not caught before caught, then the lowest return (then the lowest
+/// index).
+pub fn worst_toss(report: &TossReport, n: usize) -> Vec<&TossTrial> {
+    let mut sorted: Vec<&TossTrial> = report.throws.iter().collect();
+    sorted.sort_by(|a, b| {
+        a.caught.cmp(&b.caught).then(a.episode_return.total_cmp(&b.episode_return)).then(a.index.cmp(&b.index))
+    });
+    sorted.truncate(n);
+    sorted
+}
+
+/// Throws the `n` worst throws of `report` (an [`evaluate_toss`] with `seed`) again, recorded,
+/// into `dir` as `throw_<index>.rec`, and lists them in the report (`recorded`, relative to
+/// `report_dir`); a rerun that ends differently is an error. Returns the files written.
+pub fn save_worst_toss(
+    setup: &Arc<MetaSetup>,
+    controller: &ActingHybrid,
+    report: &mut TossReport,
+    seed: u64,
+    n: usize,
+    dir: &Path,
+    report_dir: &Path,
+) -> Result<Vec<PathBuf>> {
+    let worst: Vec<TossTrial> = worst_toss(report, n).into_iter().cloned().collect();
+    let mut written = Vec::new();
+    for t in &worst {
+        let title =
+            format!("toss, throw {} (seed {seed}): v_x {:.2} m/s, lateral {:.2} m/s", t.index, t.v_x, t.lateral);
+        let over = EpisodeOverride { throw: Some((t.v_x, t.lateral)), ..Default::default() };
+        let (e, rec) = run_recorded(setup, controller, over, seed, t.index as u64 + 1, Some(title));
+        let TaskState::Toss(j) = &e.task else { unreachable!("a toss setup") };
+        if j.caught != t.caught || e.fell != t.fell || (e.episode_return - t.episode_return).abs() > 1e-6 {
+            return Err(MetaError::Invalid(format!(
+                "throw {} did not replay the same (return {:.3}, then {:.3})",
+                t.index, t.episode_return, e.episode_return
+            )));
+        }
+        let rec = rec.ok_or_else(|| MetaError::Invalid("the rerun was not recorded".into()))?;
+        written.push(save_recording(rec, dir, &format!("throw_{}.rec", t.index))?);
+    }
+    report.recorded = relative(&written, report_dir);
+    Ok(written)
 }
 
 impl TossReport {
@@ -486,6 +635,21 @@ impl TossReport {
                     })
                     .collect();
                 let _ = writeln!(s, "| {:.2} | {} |", self.lateral[b], cells.join(" | "));
+            }
+        }
+        if !self.recorded.is_empty() {
+            let _ = writeln!(
+                s,
+                "\nworst throws (not caught, then lowest return), recorded (watch: `repertoire replay FILE`):\n"
+            );
+            let _ = writeln!(s, "| recording | v_x | lateral | caught | return | ball dropped | fell |");
+            let _ = writeln!(s, "|---|---:|---:|---|---:|---|---|");
+            for (file, t) in self.recorded.iter().zip(worst_toss(self, self.recorded.len())) {
+                let _ = writeln!(
+                    s,
+                    "| {file} | {:.2} | {:.2} | {} | {:.2} | {} | {} |",
+                    t.v_x, t.lateral, t.caught, t.episode_return, t.dropped, t.fell
+                );
             }
         }
         s

@@ -47,6 +47,14 @@ impl WarehouseSpec {
         let Prop::Box(b) = &model.scenario.scenario.props[box_prop] else {
             return Err(MetaError::Invalid(format!("warehouse prop `{}` is not a box", task.box_)));
         };
+        if task.start_phases.iter().any(|p| matches!(p, WarehousePhase::Carry | WarehousePhase::PutDown)) {
+            holding_joints(model).map_err(|e| {
+                MetaError::Scene(model.scenario.invalid(
+                    Some("start_phases"),
+                    format!("{e}; start this body's episodes in GOTO and LIFT only (`start_phases: [Goto, Lift]`)"),
+                ))
+            })?;
+        }
         let home =
             b.on.as_deref().and_then(|on| task.pedestals.iter().position(|p| p == on)).ok_or_else(|| {
                 MetaError::Invalid(format!("box `{}` does not start on a warehouse pedestal", task.box_))
@@ -229,11 +237,38 @@ const SQUEEZE_M: f64 = 0.015;
 /// How far the hands' gap may be from the wanted one (m).
 const GAP_TOLERANCE_M: f64 = 0.01;
 
+/// The arm joints the holding pose moves, per side (left, right): the built-in humanoid's
+/// `<side>_shoulder_y`, `<side>_shoulder_z` and `<side>_elbow` (indices into the body's joints).
+/// A body without them is an error naming the first missing joint and the body.
+pub fn holding_joints(model: &WorldModel) -> Result<[[usize; 3]; 2]> {
+    let idx = &model.index;
+    let joint = |name: String| {
+        idx.joints.iter().position(|j| j.name == name).ok_or_else(|| {
+            MetaError::Invalid(format!(
+                "the body {} has no joint `{name}`: CARRY and PUTDOWN episodes start with the box put into \
+                 the hands by a pose of the built-in humanoid's arm joints (`<side>_shoulder_y`, \
+                 `<side>_shoulder_z`, `<side>_elbow`)",
+                model.body.mjcf_path.display()
+            ))
+        })
+    };
+    let mut arms = [[0; 3]; 2];
+    for (arm, side) in arms.iter_mut().zip(["left", "right"]) {
+        *arm = [
+            joint(format!("{side}_shoulder_y"))?,
+            joint(format!("{side}_shoulder_z"))?,
+            joint(format!("{side}_elbow"))?,
+        ];
+    }
+    Ok(arms)
+}
+
 /// Stands the character at `(x, y)` facing `yaw` (radians) with its arms forward and free prop
 /// `b` (a box or a ball) held between its hands, both touching it, everything at rest: the start
 /// of a CARRY or PUTDOWN phase, a caught ball. The arm pose is searched over the shoulder twist and the elbow so
 /// that the hands are as far apart as the box is wide; bodies without `*shoulder_y`,
-/// `*shoulder_z` and `*elbow` joints on both sides, or a box no pose fits, are an error.
+/// `*shoulder_z` and `*elbow` joints on both sides ([`holding_joints`]; the warehouse checks
+/// this when its scenario loads), or a box no pose fits, are an error.
 pub fn place_holding(world: &mut World, b: usize, x: f64, y: f64, yaw: f64) -> Result<()> {
     let model = std::sync::Arc::clone(world.model());
     let scale = world.placements().get(b).map_or(1.0, |p| p.scale);
@@ -243,20 +278,7 @@ pub fn place_holding(world: &mut World, b: usize, x: f64, y: f64, yaw: f64) -> R
         _ => return Err(MetaError::Invalid(format!("place_holding: prop {b} is not a box or a ball"))),
     };
     let idx = &model.index;
-    let joint = |name: &str| {
-        idx.joints.iter().position(|j| j.name == name).ok_or_else(|| {
-            MetaError::Invalid(format!("place_holding: the body has no joint `{name}` to hold a box with"))
-        })
-    };
-    let sides = ["left", "right"];
-    let mut arm = Vec::new();
-    for side in sides {
-        arm.push([
-            joint(&format!("{side}_shoulder_y"))?,
-            joint(&format!("{side}_shoulder_z"))?,
-            joint(&format!("{side}_elbow"))?,
-        ]);
-    }
+    let arm = holding_joints(&model)?;
     let mj = model.mj_model();
     let hand_radius = |hand: usize| {
         (0..mj.geom_bodyid().len())

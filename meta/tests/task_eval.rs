@@ -6,10 +6,12 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use repertoire_learn::ppo::PpoConfig;
-use repertoire_meta::task_eval::{StartGrid, evaluate_toss, evaluate_warehouse};
+use repertoire_meta::task_eval::{
+    StartGrid, evaluate_toss, evaluate_warehouse, save_worst_toss, save_worst_warehouse, worst_toss, worst_warehouse,
+};
 use repertoire_meta::train::{MetaTrainOptions, load, train};
 use repertoire_meta::{MetaSetup, SkillGraph};
-use repertoire_scenes::{ScenarioFile, WorldModel};
+use repertoire_scenes::{Recording, ScenarioFile, WorldModel};
 
 fn root() -> &'static Path {
     Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
@@ -54,7 +56,7 @@ fn tiny_controller(setup: &Arc<MetaSetup>, tag: &str) -> (PathBuf, repertoire_le
 fn the_warehouse_evaluation_counts_phases_and_maps_pick_ups() {
     let s = walking(
         "warehouse",
-        r#"skills: ["walk", "turn_left", "turn_right", "lift", "carry", "put_down"]"#,
+        r#"skills: ["walk", "turn_left", "turn_right", "lift", "put_down"]"#,
         "time_limit_s: 15.0",
         2.0,
     );
@@ -85,6 +87,30 @@ fn the_warehouse_evaluation_counts_phases_and_maps_pick_ups() {
     assert!(md.contains("| all | 8 |") && md.contains("pedestal") && md.contains("/1"), "{md}");
     assert!(dir.join("report/pickup.png").exists() && dir.join("report/trials.csv").exists());
     assert!(dir.join("report/goto.svg").exists() && md.contains("GOTO reached"));
+
+    // The two worst episodes, run again recorded: the same episodes, listed in the report.
+    let mut a = a;
+    let worst: Vec<_> = worst_warehouse(&a, 2).into_iter().cloned().collect();
+    assert!(worst[0].phases <= worst[1].phases);
+    assert!(a.trials.iter().all(|t| t.phases >= worst[1].phases), "the fewest phases: {worst:?}");
+    let out = dir.join("report");
+    let files = save_worst_warehouse(&s, &head, &mut a, 3, 2, &out.join("worst"), &out).expect("record");
+    assert_eq!(a.recorded.len(), 2);
+    for ((file, listed), t) in files.iter().zip(&a.recorded).zip(&worst) {
+        assert_eq!(*listed, format!("worst/{}_{}.rec", t.start_phase.to_lowercase(), t.index));
+        let rec = Recording::load(file).expect("a recording");
+        assert_eq!(rec.header.skills, ["walk", "turn_left", "turn_right"]);
+        assert_eq!(rec.header.terms, ["phase", "phases_done", "focal_distance", "hands_on_box"]);
+        let ticks = (t.seconds * rec.header.control_hz).round() as usize;
+        assert_eq!(rec.frames(), ticks + 1, "the start, then one frame per control tick");
+        let last = (rec.frames() - 1) * rec.header.terms.len();
+        assert_eq!(rec.terms[last + 1], t.phases as f32, "phases completed at the end");
+    }
+    a.write(&out).unwrap();
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(md.contains("worst episodes") && md.contains(&format!("| {} |", a.recorded[0])), "{md}");
+    let json = std::fs::read_to_string(out.join("report.json")).unwrap();
+    assert!(json.contains(&a.recorded[1]), "{json}");
 }
 
 #[test]
@@ -113,4 +139,17 @@ fn the_strike_zone_throws_every_cell() {
     assert!(md.contains("| 12 |") && md.contains("catch rate by throw"), "{md}");
     let svg = std::fs::read_to_string(dir.join("report/strike_zone.svg")).unwrap();
     assert!(svg.contains("strike zone") && svg.contains("n=2"));
+
+    // The worst throw, thrown again recorded: uncaught first, then the lowest return.
+    let mut a = a;
+    let worst = worst_toss(&a, 1)[0].clone();
+    assert!(a.throws.iter().all(|t| (t.caught, t.episode_return) >= (worst.caught, worst.episode_return)));
+    let out = dir.join("report");
+    let files = save_worst_toss(&s, &head, &mut a, 5, 1, &out.join("worst"), &out).expect("record");
+    assert_eq!(a.recorded, [format!("worst/throw_{}.rec", worst.index)]);
+    let rec = Recording::load(&files[0]).expect("a recording");
+    assert_eq!(rec.header.terms, ["caught", "bucket_s", "ball_to_bucket", "hands_on_ball"]);
+    assert!(rec.frames() > 1 && rec.frames() <= 3 * 60 + 1, "{} frames", rec.frames());
+    let md = a.markdown();
+    assert!(md.contains("worst throws") && md.contains("worst/throw_"), "{md}");
 }

@@ -197,7 +197,7 @@ fn walking_setup(start_phases: &str) -> Arc<MetaSetup> {
     let text = std::fs::read_to_string(root().join("scenes/warehouse.ron")).unwrap();
     let text = text
         .replace(
-            r#"skills: ["walk", "turn_left", "turn_right", "lift", "carry", "put_down"]"#,
+            r#"skills: ["walk", "turn_left", "turn_right", "lift", "put_down"]"#,
             r#"skills: ["walk", "turn_left", "turn_right"]"#,
         )
         .replace("start_phases: [Goto, Lift, Carry, PutDown]", &format!("start_phases: [{start_phases}]"));
@@ -291,7 +291,7 @@ fn a_library_without_the_warehouse_skills_is_refused_naming_them() {
     let model = Arc::new(WorldModel::build(file).unwrap());
     let graph = SkillGraph::of(&model.scenario.scenario);
     let err = MetaSetup::new(model, &lib, graph).err().expect("skills are missing").to_string();
-    assert!(err.contains("warehouse.ron") && err.contains("turn_left, turn_right, lift, carry, put_down"), "{err}");
+    assert!(err.contains("warehouse.ron") && err.contains("turn_left, turn_right, lift, put_down"), "{err}");
     assert!(err.contains("(it has: walk)") && err.contains("--skills"), "{err}");
     let _ = std::fs::remove_dir_all(&lib);
 }
@@ -307,4 +307,34 @@ fn a_warehouse_without_spawn_zones_is_refused() {
     let graph = SkillGraph::of(&model.scenario.scenario).restricted(&["walk".to_string()]).unwrap();
     let err = MetaSetup::new(model, &root().join("skills/library"), graph).err().expect("no zone").to_string();
     assert!(err.contains("no-spawn.ron") && err.contains("spawn zone"), "{err}");
+}
+
+#[test]
+fn a_body_without_the_humanoid_arm_joints_cannot_start_holding_the_box() {
+    // The built-in humanoid with its elbows renamed: the holding pose has no elbow to bend.
+    let dir = std::env::temp_dir().join(format!("repertoire-forearm-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let body = repertoire_scenes::BodyDef::humanoid();
+    std::fs::write(dir.join("forearm.xml"), body.mjcf.replace("_elbow\"", "_forearm\"")).unwrap();
+    std::fs::write(dir.join("forearm.map.ron"), body.map_text.replace("_elbow\"", "_forearm\"")).unwrap();
+    let text = std::fs::read_to_string(root().join("scenes/warehouse.ron")).unwrap().replace(
+        "body: Humanoid",
+        &format!(
+            "body: Mjcf(file: \"{}\", map: \"{}\")",
+            dir.join("forearm.xml").display(),
+            dir.join("forearm.map.ron").display()
+        ),
+    );
+    let file = ScenarioFile::parse(&dir.join("warehouse.ron"), text.clone()).expect("the scenario parses");
+    let model = WorldModel::build(file).expect("the body builds");
+    let err = TaskSpec::of(&model).expect_err("CARRY starts need the arm joints").to_string();
+    let line = text.lines().position(|l| l.contains("start_phases:")).unwrap() + 1;
+    assert!(err.contains(&format!("warehouse.ron:{line}:")), "located at start_phases: {err}");
+    assert!(err.contains("forearm.xml") && err.contains("no joint `left_elbow`"), "{err}");
+    assert!(err.contains("start_phases: [Goto, Lift]"), "says what to do: {err}");
+    // Starting in GOTO and LIFT only, the same body is accepted.
+    let text = text.replace("start_phases: [Goto, Lift, Carry, PutDown]", "start_phases: [Goto, Lift]");
+    let model = WorldModel::build(ScenarioFile::parse(&dir.join("warehouse.ron"), text).unwrap()).unwrap();
+    assert!(matches!(TaskSpec::of(&model), Ok(TaskSpec::Warehouse(_))));
+    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -89,6 +89,24 @@ pub struct ObservationLayout {
 impl ObservationLayout {
     /// Lays `features` out for `model`'s scene; a prop feature naming no prop is an error.
     pub fn new(model: &WorldModel, features: &[Feature]) -> Result<Self> {
+        Self::with_props(model, features, |f, name| {
+            model.prop_id(name).ok_or_else(|| {
+                SceneError::Usage(format!(
+                    "observation feature {}: no prop `{name}` in {}",
+                    f.name(),
+                    model.scenario.path.display()
+                ))
+            })
+        })
+    }
+
+    /// Lays `features` out with each prop feature's prop chosen by `resolve(feature, name)`
+    /// (a skill's prop bound to another prop of this scene); its error is passed on.
+    pub fn with_props(
+        model: &WorldModel,
+        features: &[Feature],
+        mut resolve: impl FnMut(&Feature, &str) -> Result<usize>,
+    ) -> Result<Self> {
         let dof = model.index.dof();
         let mut entries = Vec::with_capacity(features.len());
         let mut prop_ids = Vec::new();
@@ -101,13 +119,14 @@ impl ObservationLayout {
                 Feature::PitchRoll => 2,
                 Feature::FootContacts => model.index.foot_touch.len(),
                 Feature::PropPose(name) | Feature::PropVelocity(name) => {
-                    let id = model.prop_id(name).ok_or_else(|| {
-                        SceneError::Usage(format!(
-                            "observation feature {}: no prop `{name}` in {}",
+                    let id = resolve(f, name)?;
+                    if id >= model.props.len() {
+                        return Err(SceneError::Usage(format!(
+                            "observation feature {}: prop index {id} is out of range ({} props)",
                             f.name(),
-                            model.scenario.path.display()
-                        ))
-                    })?;
+                            model.props.len()
+                        )));
+                    }
                     prop_ids.push(id);
                     if matches!(f, Feature::PropPose(_)) { 5 } else { 3 }
                 }
@@ -116,6 +135,20 @@ impl ObservationLayout {
             offset += len;
         }
         Ok(Self { features: features.to_vec(), entries, size: offset, prop_ids })
+    }
+
+    /// The props the prop features read, in feature order (one per prop feature).
+    pub fn prop_ids(&self) -> &[usize] {
+        &self.prop_ids
+    }
+
+    /// The prop names the prop features were declared with, in feature order (the slots
+    /// [`World::observe_props`] fills).
+    pub fn prop_names(&self) -> impl Iterator<Item = &str> {
+        self.features.iter().filter_map(|f| match f {
+            Feature::PropPose(n) | Feature::PropVelocity(n) => Some(n.as_str()),
+            _ => None,
+        })
     }
 
     /// Checks that `other` (e.g. from a skill manifest) lays out the same values in the same
@@ -157,8 +190,15 @@ impl World {
 
     /// Writes the observation described by `layout` into `out` (length `layout.size`).
     pub fn observe(&self, layout: &ObservationLayout, out: &mut [f32]) {
+        self.observe_props(layout, &layout.prop_ids, out);
+    }
+
+    /// Like [`World::observe`], with the prop features reading `props` (one prop index per prop
+    /// feature, in order) instead of the layout's: a skill's prop bound per tick to another.
+    pub fn observe_props(&self, layout: &ObservationLayout, props: &[usize], out: &mut [f32]) {
         debug_assert_eq!(out.len(), layout.size);
-        let mut props = layout.prop_ids.iter();
+        debug_assert_eq!(props.len(), layout.prop_ids.len());
+        let mut props = props.iter();
         let data = self.data();
         let idx = &self.model().index;
         for (f, e) in layout.features.iter().zip(&layout.entries) {

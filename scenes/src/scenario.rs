@@ -9,7 +9,7 @@ use crate::param::Param;
 use crate::throw::ThrowSpec;
 use rand::Rng;
 use serde::{Deserialize, Serialize};
-use std::collections::HashSet;
+use std::collections::{BTreeMap, HashSet};
 use std::path::{Path, PathBuf};
 
 /// The skills the project knows how to train; a scenario may list only these.
@@ -51,6 +51,21 @@ pub struct Scenario {
     /// What the high level drives: the discrete skills (default) or a learned latent space.
     #[serde(default)]
     pub low_level: LowLevel,
+    /// What the props a skill observes (named after its training scene's props, e.g. lift's
+    /// `"pedestal"`) stand for here; a name not bound means this scenario's prop of that name.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub bind: BTreeMap<String, PropBinding>,
+}
+
+/// What a prop named in a skill's observation resolves to in a scenario (see `Scenario::bind`).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub enum PropBinding {
+    /// This scenario's prop of that name, always.
+    Prop(String),
+    /// The warehouse task's focal pedestal: the box's pedestal during GOTO and LIFT, the target
+    /// during CARRY and PUTDOWN. It is read when a skill starts playing and held while it plays,
+    /// so a frozen skill never sees its pedestal jump mid-motion when a phase completes.
+    Focal,
 }
 
 /// The low level a scenario's high-level controller acts through.
@@ -844,6 +859,10 @@ impl ScenarioFile {
             }
         }
 
+        for (name, binding) in &s.bind {
+            self.validate_binding(name, binding)?;
+        }
+
         let mut skills = HashSet::new();
         for skill in &s.skills {
             if !KNOWN_SKILLS.contains(&skill.as_str()) {
@@ -908,6 +927,35 @@ impl ScenarioFile {
             }
             None => Err(self.unknown_prop(name, role)),
         }
+    }
+
+    /// One `bind` entry: a prop-like name bound to an existing prop or to a role the task has.
+    fn validate_binding(&self, name: &str, binding: &PropBinding) -> Result<()> {
+        if name.is_empty() || name.contains('/') || name.chars().any(char::is_whitespace) {
+            return Err(self.invalid(
+                Some("bind"),
+                format!("`bind` key `{name}` must be a prop name: non-empty, without spaces or `/`"),
+            ));
+        }
+        match binding {
+            PropBinding::Prop(target) => {
+                if self.prop(target).is_none() {
+                    return Err(self.unknown_prop(target, &format!("`bind`'s `{name}`")));
+                }
+            }
+            PropBinding::Focal => {
+                if !matches!(self.scenario.task, Task::Warehouse(_)) {
+                    return Err(self.invalid(
+                        Some(name),
+                        format!(
+                            "`bind` maps `{name}` to Focal, the warehouse's focal pedestal, but the task is {}",
+                            self.scenario.task.kind()
+                        ),
+                    ));
+                }
+            }
+        }
+        Ok(())
     }
 
     fn validate_warehouse(&self, w: &Warehouse) -> Result<()> {

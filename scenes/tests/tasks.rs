@@ -120,6 +120,53 @@ fn malformed_task_sections_are_located_and_explained() {
 }
 
 #[test]
+fn prop_bindings_parse_and_bad_ones_are_located() {
+    use repertoire_scenes::scenario::PropBinding;
+    let file = ScenarioFile::load(shipped("warehouse.ron")).unwrap();
+    assert_eq!(file.scenario.bind.get("pedestal"), Some(&PropBinding::Focal));
+    assert_eq!(file.scenario.bind.len(), 1);
+    let file = ScenarioFile::load(shipped("toss.ron")).unwrap();
+    assert_eq!(file.scenario.bind.get("box"), Some(&PropBinding::Prop("ball".into())));
+    // The sitting scenario binds nothing, and writes no `bind` when serialised.
+    let sit = ScenarioFile::builtin_default();
+    assert!(sit.scenario.bind.is_empty());
+    assert!(!ron::to_string(&sit.scenario).unwrap().contains("bind"));
+
+    const HEAD: &str = r#"Scenario(
+    name: "t",
+    props: [Pedestal(name: "a"), Pedestal(name: "b"), Box(name: "crate", on: "a"), Chair(name: "chair")],"#;
+    let warehouse = r#"task: Warehouse(box: "crate", pedestals: ["a", "b"]),"#;
+    let sit = r#"task: Sit(seat: "chair"),"#;
+    let cases = [
+        // (task, bind, expected message, expected line)
+        (warehouse, r#"bind: {"pedestal": Prop("table")},"#, "`bind`'s `pedestal` refers to prop `table`", 5),
+        (warehouse, r#"bind: {"pedestal": Nearest},"#, "Nearest", 5),
+        (warehouse, r#"bind: {"my pedestal": Focal},"#, "must be a prop name", 5),
+        (
+            sit,
+            r#"bind: {"pedestal": Focal},"#,
+            "maps `pedestal` to Focal, the warehouse's focal pedestal, but the task is Sit",
+            5,
+        ),
+    ];
+    for (task, bind, expect, line) in cases {
+        let text = format!("{HEAD}\n    {task}\n    {bind}\n)");
+        let err = parse(&text).err().unwrap_or_else(|| panic!("accepted: {bind}"));
+        let msg = err.to_string();
+        assert!(msg.starts_with("task.ron:") && msg.contains(expect), "{bind}\n→ {msg}");
+        let loc = match &err {
+            SceneError::Ron { loc, .. } => Some(*loc),
+            SceneError::Invalid { loc, .. } => *loc,
+            other => panic!("{other:?}"),
+        };
+        assert_eq!(loc.map(|l| l.line), Some(line), "{bind}\n→ {msg}");
+    }
+    // A binding to an existing prop is accepted in any task.
+    let text = format!("{HEAD}\n    {sit}\n    bind: {{\"seat\": Prop(\"chair\")}},\n)");
+    assert_eq!(parse(&text).unwrap().scenario.bind.get("seat"), Some(&PropBinding::Prop("chair".into())));
+}
+
+#[test]
 fn a_ball_of_any_drawn_mass_falls_at_standard_gravity() {
     // Masses drawn per episode (2–4 kg around a nominal 3 kg) change the ball's inertia, not
     // how fast it falls; before MuJoCo's derived constants were recomputed it fell at g·m/3.

@@ -9,7 +9,7 @@ use clap::Subcommand;
 use repertoire_learn::ppo::IterationMetrics;
 use repertoire_meta::eval::{evaluate, save_worst};
 use repertoire_meta::latent::{self, LatentSetup};
-use repertoire_meta::task_eval::{StartGrid, evaluate_toss, evaluate_warehouse};
+use repertoire_meta::task_eval::{StartGrid, evaluate_toss, evaluate_warehouse, save_worst_toss, save_worst_warehouse};
 use repertoire_meta::train::{MetaTrainOptions, default_ppo, load, train};
 use repertoire_meta::{Advance, MetaSetup, SkillGraph, TaskSpec};
 use repertoire_scenes::WorldModel;
@@ -115,7 +115,8 @@ pub enum MetaCommand {
         #[arg(long, value_delimiter = ',')]
         skills: Vec<String>,
         /// Record this many of the worst trials into <out>/worst/ (with replay pages when
-        /// three.js is installed); 0 records none.
+        /// three.js is installed): sitting's failures with the largest distance, the warehouse's
+        /// fewest phases, the toss's uncaught throws, then the lowest return; 0 records none.
         #[arg(long, default_value_t = 3)]
         worst: usize,
         /// Evaluate a high level trained through this latent model (overrides the scenario's
@@ -222,21 +223,25 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
                 TaskSpec::Warehouse(_) => {
                     let n = grid.unwrap_or(9);
                     let map = (n > 0).then_some(StartGrid { n, half_m: grid_half_m, trials: grid_trials });
-                    let report = evaluate_warehouse(&setup, &head, trials.unwrap_or(200), map, seed)?;
+                    let mut report = evaluate_warehouse(&setup, &head, trials.unwrap_or(200), map, seed)?;
+                    let recs = save_worst_warehouse(&setup, &head, &mut report, seed, worst, &out.join("worst"), &out)?;
                     print!("{}", report.markdown());
                     report.write(&out)?;
                     println!(
                         "\nreport.md, trials.csv, report.json, pickup.png and goto.png written to {}",
                         out.display()
                     );
+                    worst_recorded(&recs, &out);
                     return Ok(());
                 }
                 TaskSpec::Toss(_) => {
                     let n = grid.unwrap_or(7).max(1);
-                    let report = evaluate_toss(&setup, &head, n, n, grid_trials, seed)?;
+                    let mut report = evaluate_toss(&setup, &head, n, n, grid_trials, seed)?;
+                    let recs = save_worst_toss(&setup, &head, &mut report, seed, worst, &out.join("worst"), &out)?;
                     print!("{}", report.markdown());
                     report.write(&out)?;
                     println!("\nreport.md, throws.csv, report.json and strike_zone.png written to {}", out.display());
+                    worst_recorded(&recs, &out);
                     return Ok(());
                 }
             }
@@ -262,6 +267,19 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
             }
             Ok(())
         }
+    }
+}
+
+/// Writes replay pages beside the worst episodes' recordings and says where they are.
+fn worst_recorded(recs: &[PathBuf], out: &Path) {
+    super::replay::pages_beside(recs);
+    if !recs.is_empty() {
+        println!(
+            "{} worst episodes recorded in {} (watch: repertoire replay {})",
+            recs.len(),
+            out.join("worst").display(),
+            out.display()
+        );
     }
 }
 

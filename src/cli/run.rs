@@ -11,7 +11,7 @@ use anyhow::Result;
 use clap::Args;
 use rand::SeedableRng;
 use rand::rngs::StdRng;
-use repertoire_meta::task_eval::{evaluate_toss, evaluate_warehouse};
+use repertoire_meta::task_eval::{evaluate_toss, evaluate_warehouse, save_worst_toss, save_worst_warehouse};
 use repertoire_meta::{MetaSetup, TaskSpec};
 use repertoire_scenes::WorldModel;
 use std::path::PathBuf;
@@ -210,6 +210,9 @@ fn default_meta(file: Option<&PathBuf>) -> Result<PathBuf> {
 
 /// A quick evaluation of a warehouse or toss meta-controller: `trials` episodes (warehouse) or
 /// a 3 × 3 strike zone with `trials / 9` throws per cell (toss).
+/// Worst warehouse episodes or toss throws `run` records.
+const WORST_TASK_EPISODES: usize = 3;
+
 fn run_task(
     setup: &Arc<MetaSetup>,
     head: &repertoire_learn::acting::ActingHybrid,
@@ -226,15 +229,22 @@ fn run_task(
     let secs = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from(format!("runs/run-{secs}-s{}", args.seed)));
     let t0 = Instant::now();
-    if let TaskSpec::Warehouse(_) = setup.task {
-        let report = evaluate_warehouse(setup, head, args.trials, None, args.seed)?;
+    // The worst episodes are recorded (with replay pages when three.js is installed), as for sitting.
+    let worst = out.join("worst");
+    let recs = if let TaskSpec::Warehouse(_) = setup.task {
+        let mut report = evaluate_warehouse(setup, head, args.trials, None, args.seed)?;
+        let recs = save_worst_warehouse(setup, head, &mut report, args.seed, WORST_TASK_EPISODES, &worst, &out)?;
         print!("{}", report.markdown());
         report.write(&out)?;
+        recs
     } else {
-        let report = evaluate_toss(setup, head, 3, 3, (args.trials / 9).max(1), args.seed)?;
+        let mut report = evaluate_toss(setup, head, 3, 3, (args.trials / 9).max(1), args.seed)?;
+        let recs = save_worst_toss(setup, head, &mut report, args.seed, WORST_TASK_EPISODES, &worst, &out)?;
         print!("{}", report.markdown());
         report.write(&out)?;
-    }
+        recs
+    };
+    super::replay::pages_beside(&recs);
     println!(
         "\nin {:.1} s; reports written to {}; `repertoire meta eval` runs the full evaluation",
         t0.elapsed().as_secs_f64(),

@@ -2,7 +2,7 @@
 
 use anyhow::Result;
 use clap::Subcommand;
-use repertoire_scenes::scenario::{Facing, Prop, Task};
+use repertoire_scenes::scenario::{Facing, Prop, PropBinding, Task};
 use repertoire_scenes::{Param, WorldModel};
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -111,6 +111,17 @@ fn check(file: Option<PathBuf>) -> Result<()> {
     }
     println!("task      {}", describe_task(&s.task));
     println!("skills    {}", if s.skills.is_empty() { "none".into() } else { s.skills.join(", ") });
+    if !s.bind.is_empty() {
+        let bound: Vec<String> = s
+            .bind
+            .iter()
+            .map(|(name, to)| match to {
+                PropBinding::Prop(p) => format!("{name} → {p}"),
+                PropBinding::Focal => format!("{name} → the focal pedestal"),
+            })
+            .collect();
+        println!("bind      skills' props: {}", bound.join(", "));
+    }
     match model.scenario.latent_dir() {
         None => println!("low level skills (the meta-controller picks among them)"),
         Some(dir) => println!("low level latent model {} (a high-level policy over z ∈ (−2, 2)^d)", dir.display()),

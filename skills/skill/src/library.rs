@@ -161,6 +161,27 @@ impl LibrarySkill {
     /// Checks that this skill can drive the character of `model`: same body, same rates, and
     /// the observation layout it was trained on.
     pub fn check_fits(&self, model: &WorldModel) -> Result<()> {
+        self.check_body_and_rates(model)?;
+        let here = ObservationLayout::new(model, &self.manifest.observation.features)?;
+        self.check_layout(&here)
+    }
+
+    /// Like [`LibrarySkill::check_fits`], with the observation laid out by the caller (its
+    /// props bound to props of `model` with other names, see `Scenario::bind`).
+    pub fn check_fits_layout(&self, model: &WorldModel, here: &ObservationLayout) -> Result<()> {
+        self.check_body_and_rates(model)?;
+        self.check_layout(here)
+    }
+
+    fn check_layout(&self, here: &ObservationLayout) -> Result<()> {
+        let m = &self.manifest;
+        here.ensure_same(&m.observation).map_err(|e| SkillError::Mismatch {
+            path: self.dir.join("manifest.ron"),
+            message: format!("skill `{}`: {e}", m.name),
+        })
+    }
+
+    fn check_body_and_rates(&self, model: &WorldModel) -> Result<()> {
         let m = &self.manifest;
         let path = self.dir.join("manifest.ron");
         let mismatch = |message: String| Err(SkillError::Mismatch { path: path.clone(), message });
@@ -181,7 +202,6 @@ impl LibrarySkill {
                 m.name, m.control_hz, m.physics_hz, rates.control_hz, rates.physics_hz
             ));
         }
-        let here = ObservationLayout::new(model, &m.observation.features)?;
-        here.ensure_same(&m.observation).or_else(|e| mismatch(format!("skill `{}`: {e}", m.name)))
+        Ok(())
     }
 }
