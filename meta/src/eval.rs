@@ -343,10 +343,8 @@ impl MetaReport {
         let json = serde_json_string(self);
         let files = [("report.md", self.markdown()), ("trials.csv", csv), ("report.json", json)];
         for (name, text) in files {
-            let path = dir.join(name);
-            let partial = dir.join(format!("{name}.partial"));
-            std::fs::write(&partial, text).map_err(err)?;
-            std::fs::rename(&partial, &path).map_err(err)?;
+            repertoire_files::write_atomic(&dir.join(name), text.as_bytes())
+                .map_err(|e| MetaError::Invalid(e.to_string()))?;
         }
         self.plot(dir)
     }

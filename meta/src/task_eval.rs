@@ -99,9 +99,8 @@ fn write_files(dir: &Path, files: &[(&str, String)]) -> Result<()> {
     let err = |e: std::io::Error| MetaError::Invalid(format!("{}: {e}", dir.display()));
     std::fs::create_dir_all(dir).map_err(err)?;
     for (name, text) in files {
-        let partial = dir.join(format!("{name}.partial"));
-        std::fs::write(&partial, text).map_err(err)?;
-        std::fs::rename(&partial, dir.join(name)).map_err(err)?;
+        repertoire_files::write_atomic(&dir.join(name), text.as_bytes())
+            .map_err(|e| MetaError::Invalid(e.to_string()))?;
     }
     Ok(())
 }

@@ -123,14 +123,18 @@ where
     let draw_err = |path: &Path, message: String| ReportError::Draw { path: path.to_path_buf(), message };
 
     // PNG: the encoder picks the format from the extension, so the temporary name ends in .png.
-    let tmp_png = temp_name(&png);
-    {
+    let tmp_png = repertoire_files::temp_sibling(&png);
+    let drawn = (|| {
         let area = BitMapBackend::new(&tmp_png, size).into_drawing_area();
         area.fill(&WHITE).map_err(|e| draw_err(&png, e.to_string()))?;
         png_draw(&area).map_err(|m| draw_err(&png, m))?;
-        area.present().map_err(|e| draw_err(&png, e.to_string()))?;
+        area.present().map_err(|e| draw_err(&png, e.to_string()))
+    })();
+    if let Err(e) = drawn {
+        let _ = std::fs::remove_file(&tmp_png);
+        return Err(e);
     }
-    std::fs::rename(&tmp_png, &png).map_err(|source| ReportError::Io { path: png.clone(), source })?;
+    repertoire_files::commit(&tmp_png, &png).map_err(|e| ReportError::Io { path: e.path, source: e.source })?;
 
     let mut text = String::new();
     {
@@ -143,18 +147,9 @@ where
     Ok([png, svg])
 }
 
-/// `dir/.name.partial.ext`: a sibling that a crash leaves behind without clobbering `path`.
-fn temp_name(path: &Path) -> PathBuf {
-    let name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-    let ext = path.extension().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-    path.with_file_name(format!(".{name}.partial.{ext}"))
-}
-
 /// Writes `bytes` to `path` through a temporary sibling renamed into place.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let tmp = temp_name(path);
-    std::fs::write(&tmp, bytes).map_err(|source| ReportError::Io { path: path.to_path_buf(), source })?;
-    std::fs::rename(&tmp, path).map_err(|source| ReportError::Io { path: path.to_path_buf(), source })
+    repertoire_files::write_atomic(path, bytes).map_err(|e| ReportError::Io { path: e.path, source: e.source })
 }
 
 /// One named line.

@@ -15,7 +15,7 @@
 //! all little-endian; a pose is `x y z qw qx qy qz` in the world frame. A 20 s rollout of the
 //! built-in humanoid at 60 Hz with a ghost is about 1.5 MB.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::Arc;
 
 use mujoco_rs::prelude::*;
@@ -602,12 +602,5 @@ fn corrupt(path: &Path, message: String) -> SceneError {
 /// Writes `bytes` to `path` via a temporary file beside it and a rename, so readers never see
 /// half a file.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into());
-    let tmp: PathBuf = path.with_file_name(format!(".{name}.{}.partial", std::process::id()));
-    let fail = |file: &Path, e: std::io::Error| SceneError::Write { file: file.to_path_buf(), source: e };
-    std::fs::write(&tmp, bytes).map_err(|e| fail(&tmp, e))?;
-    std::fs::rename(&tmp, path).map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        fail(path, e)
-    })
+    repertoire_files::write_atomic(path, bytes).map_err(|e| SceneError::Write { file: e.path, source: e.source })
 }

@@ -79,9 +79,7 @@ impl LatentError {
 /// Result alias for this crate.
 pub type Result<T, E = LatentError> = std::result::Result<T, E>;
 
-/// Writes `bytes` to `path` via `path.partial` and a rename, so readers never see half a file.
+/// Writes `bytes` to `path` through a temporary sibling and a rename ([`repertoire_files`]).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let partial = PathBuf::from(format!("{}.partial", path.display()));
-    std::fs::write(&partial, bytes).map_err(|e| LatentError::io(&partial, "cannot write", e))?;
-    std::fs::rename(&partial, path).map_err(|e| LatentError::io(path, "cannot rename into place", e))
+    repertoire_files::write_atomic(path, bytes).map_err(|e| LatentError::io(&e.path, e.action, e.source))
 }

@@ -117,7 +117,7 @@ impl ActingPolicy {
         }
     }
 
-    /// Writes the policy to `path` (safetensors) via a `.partial` file and a rename.
+    /// Writes the policy to `path` (safetensors) via a temporary sibling and a rename.
     pub fn save(&self, path: &Path) -> Result<(), CheckpointError> {
         let mut entries: Vec<(String, Dtype, Vec<usize>, Vec<u8>)> = Vec::new();
         let bytes32 = |v: &[f32]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
@@ -140,13 +140,7 @@ impl ActingPolicy {
         let meta = HashMap::from([("format".to_string(), "repertoire-acting-policy-1".to_string())]);
         let bytes =
             safetensors::serialize(views, Some(meta)).map_err(|e| corrupt(path, format!("cannot serialise: {e}")))?;
-        let partial = PathBuf::from(format!("{}.partial", path.display()));
-        let io = |p: &Path| {
-            let p = p.to_path_buf();
-            move |source| CheckpointError::Io { path: p, source }
-        };
-        std::fs::write(&partial, &bytes).map_err(io(&partial))?;
-        std::fs::rename(&partial, path).map_err(io(path))
+        repertoire_files::write_atomic(path, &bytes).map_err(|e| CheckpointError::Io { path: e.path, source: e.source })
     }
 
     /// Reads a policy written by [`ActingPolicy::save`].
@@ -224,7 +218,7 @@ impl ActingHybrid {
         }
     }
 
-    /// Writes the head to `path` (safetensors, via a `.partial` file and a rename).
+    /// Writes the head to `path` (safetensors, via temporary siblings and renames).
     pub fn save(&self, path: &Path) -> Result<(), CheckpointError> {
         let as_policy = |mean: &MlpInference, log_std: Vec<f32>| ActingPolicy {
             mean: mean.clone(),

@@ -1,6 +1,6 @@
 //! Checkpoints: a safetensors file (network weights, Adam moments, normaliser statistics) beside
 //! a RON manifest (config, sizes, counters, RNG and environment states, format version, and the
-//! length and hash of the weights file). Both are written to `*.partial` and renamed into place,
+//! length and hash of the weights file). Both are written to temporary siblings and renamed into place,
 //! and [`load`] refuses truncated, corrupt or mismatched checkpoints with a [`CheckpointError`].
 
 use std::collections::HashMap;
@@ -125,11 +125,9 @@ fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> CheckpointError + '_ {
     move |source| CheckpointError::Io { path: path.to_path_buf(), source }
 }
 
-/// Write `bytes` to `path.partial`, then rename it to `path`.
+/// Write `bytes` to a temporary sibling of `path`, then rename it into place.
 fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), CheckpointError> {
-    let partial = PathBuf::from(format!("{}.partial", path.display()));
-    std::fs::write(&partial, bytes).map_err(io_err(&partial))?;
-    std::fs::rename(&partial, path).map_err(io_err(path))
+    repertoire_files::write_atomic(path, bytes).map_err(|e| CheckpointError::Io { path: e.path, source: e.source })
 }
 
 /// A named tensor to be written: dtype, shape, little-endian bytes.

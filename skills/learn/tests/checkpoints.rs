@@ -80,7 +80,12 @@ fn round_trip_and_refusals() {
     ppo.train(1, |_| {});
     let stem = dir.join("ok");
     let manifest = checkpoint::save(&mut ppo, &stem).expect("save");
-    assert!(!dir.join("ok.safetensors.partial").exists() && !dir.join("ok.ron.partial").exists());
+    let leftovers: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains("partial"))
+        .collect();
+    assert!(leftovers.is_empty(), "temporary files left behind: {leftovers:?}");
 
     // Round trip.
     let mut back = checkpoint::load(&stem, drift(3)).expect("load");

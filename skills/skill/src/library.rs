@@ -94,11 +94,9 @@ pub struct LibrarySkill {
     pub policy: ActingPolicy,
 }
 
-/// Writes `bytes` to `path` via `path.partial` and a rename, so readers never see half a file.
+/// Writes `bytes` to `path` through a temporary sibling and a rename ([`repertoire_files`]).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let partial = PathBuf::from(format!("{}.partial", path.display()));
-    std::fs::write(&partial, bytes).map_err(|e| SkillError::io(&partial, "cannot write", e))?;
-    std::fs::rename(&partial, path).map_err(|e| SkillError::io(path, "cannot rename into place", e))
+    repertoire_files::write_atomic(path, bytes).map_err(|e| SkillError::io(&e.path, e.action, e.source))
 }
 
 /// The folder of skill `name` in `library`.

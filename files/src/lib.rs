@@ -1,0 +1,56 @@
+//! Atomic file writes: every output Repertoire writes (checkpoints, manifests, clips, pools,
+//! reports, recordings, plots) goes to a temporary sibling first and is renamed into place, so
+//! a reader (or a crash) never sees half a file and a failed write leaves the old file intact.
+//!
+//! Temporary names carry the process id and a per-process counter, so concurrent writers of the
+//! same file (parallel evaluations, two runs sharing a library) never write into each other's
+//! temporary file; the one that renames last wins, whole.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// A write that failed: the file it was for, what was being done, and why.
+#[derive(Debug, thiserror::Error)]
+#[error("{}: {action}: {source}", path.display())]
+pub struct WriteError {
+    /// The file being written (the destination, or the temporary sibling when creating it failed).
+    pub path: PathBuf,
+    /// What failed: "cannot write" or "cannot rename into place".
+    pub action: &'static str,
+    /// The underlying error.
+    #[source]
+    pub source: std::io::Error,
+}
+
+static COUNTER: AtomicU64 = AtomicU64::new(0);
+
+/// A hidden temporary sibling of `path` that keeps its extension (`dir/.stem.partial-PID-N.ext`),
+/// for writers that pick the format from the name (image encoders). Unique within the process
+/// and across processes.
+pub fn temp_sibling(path: &Path) -> PathBuf {
+    let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into());
+    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+    let pid = std::process::id();
+    match path.extension() {
+        Some(ext) => path.with_file_name(format!(".{stem}.partial-{pid}-{n}.{}", ext.to_string_lossy())),
+        None => path.with_file_name(format!(".{stem}.partial-{pid}-{n}")),
+    }
+}
+
+/// Renames the finished temporary file `tmp` onto `path`; on failure the temporary is removed.
+pub fn commit(tmp: &Path, path: &Path) -> Result<(), WriteError> {
+    std::fs::rename(tmp, path).map_err(|source| {
+        let _ = std::fs::remove_file(tmp);
+        WriteError { path: path.to_path_buf(), action: "cannot rename into place", source }
+    })
+}
+
+/// Writes `bytes` to `path` through a temporary sibling renamed into place.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), WriteError> {
+    let tmp = temp_sibling(path);
+    if let Err(source) = std::fs::write(&tmp, bytes) {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(WriteError { path: path.to_path_buf(), action: "cannot write", source });
+    }
+    commit(&tmp, path)
+}
