@@ -25,7 +25,7 @@ fn main() -> anyhow::Result<()> {
     let (blend, momentum) = (option("--blend=", 0.0)?, option("--momentum=", 1.0)?);
 
     let mut spec = SpecFile::load(Path::new(spec_path))?;
-    spec.spec.init = Init::Pools { from, fraction: 1.0 };
+    spec.spec.init = Init::pools(from);
     let setup = SkillSetup::new(spec, Path::new("skills/library"))?;
     let r = &setup.settings.reference;
     let frames = r.frames();

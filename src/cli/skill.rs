@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use clap::{Args, Subcommand};
 use repertoire_skill::eval::{StartFrom, evaluate, pool_of};
 use repertoire_skill::library;
@@ -33,6 +33,10 @@ pub enum SkillCommand {
         /// Share of episodes started from the pools (the rest use reference-state init).
         #[arg(long, default_value_t = 0.7)]
         fraction: f64,
+        /// Scale the pool states' velocities by a factor drawn uniformly from LO,HI per
+        /// episode (a curriculum towards the predecessors' momentum); default 1,1.
+        #[arg(long, value_delimiter = ',', value_name = "LO,HI")]
+        speed: Option<Vec<f64>>,
         #[command(flatten)]
         common: TrainArgs,
     },
@@ -123,8 +127,19 @@ pub fn run(cmd: SkillCommand) -> Result<()> {
     let command = std::env::args().collect::<Vec<_>>().join(" ");
     match cmd {
         SkillCommand::Train { spec, common } => train_cmd(&spec, None, common, command),
-        SkillCommand::Finetune { spec, from, fraction, common } => {
-            train_cmd(&spec, Some((from, fraction)), common, command)
+        SkillCommand::Finetune { spec, from, fraction, speed, common } => {
+            let speed = match speed.as_deref() {
+                None => (1.0, 1.0),
+                Some(&[lo, hi]) => (lo, hi),
+                Some(v) => bail!("--speed takes two numbers LO,HI, got {v:?}"),
+            };
+            if !(speed.0.is_finite() && speed.1.is_finite() && 0.0 <= speed.0 && speed.0 <= speed.1) {
+                bail!("--speed LO,HI needs 0 <= LO <= HI, got {},{}", speed.0, speed.1);
+            }
+            if !(0.0..=1.0).contains(&fraction) {
+                bail!("--fraction must be in [0, 1], got {fraction}");
+            }
+            train_cmd(&spec, Some((from, fraction, speed)), common, command)
         }
         SkillCommand::Play { spec, record, html, library, seed, from, web } => {
             play_cmd(&spec, &record, html.as_deref(), &library, seed, from, web.as_deref())
@@ -135,11 +150,16 @@ pub fn run(cmd: SkillCommand) -> Result<()> {
     }
 }
 
-fn train_cmd(spec_path: &Path, finetune: Option<(Vec<String>, f64)>, a: TrainArgs, command: String) -> Result<()> {
+fn train_cmd(
+    spec_path: &Path,
+    finetune: Option<(Vec<String>, f64, (f64, f64))>,
+    a: TrainArgs,
+    command: String,
+) -> Result<()> {
     let mut spec = SpecFile::load(spec_path)?;
     let init_from_library = finetune.is_some();
-    if let Some((from, fraction)) = finetune {
-        spec.spec.init = Init::Pools { from, fraction };
+    if let Some((from, fraction, speed)) = finetune {
+        spec.spec.init = Init::Pools { from, fraction, speed };
     }
     let setup = SkillSetup::new(spec, &a.library)?;
     let s = &setup.spec.spec;
@@ -204,7 +224,7 @@ fn eval_cmd(
         from
     };
     if !predecessors.is_empty() {
-        spec.spec.init = Init::Pools { from: predecessors.clone(), fraction: 1.0 };
+        spec.spec.init = Init::pools(predecessors.clone());
     }
     let setup = SkillSetup::new(spec, library)?;
     let name = setup.spec.spec.name.clone();
@@ -258,7 +278,7 @@ fn play_cmd(
     let mut spec = SpecFile::load(spec_path)?;
     let start = if from.is_empty() { StartFrom::ClipStart } else { StartFrom::Predecessors };
     if !from.is_empty() {
-        spec.spec.init = Init::Pools { from, fraction: 1.0 };
+        spec.spec.init = Init::pools(from);
     }
     let setup = SkillSetup::new(spec, library)?;
     let name = setup.spec.spec.name.clone();

@@ -68,7 +68,7 @@ pub fn evaluate(
         StartFrom::ClipStart => Init::Start,
         StartFrom::Predecessors => match &setup.spec.spec.init {
             Init::Pools { from, .. } if settings.pools.iter().any(|p| !p.states.is_empty()) => {
-                Init::Pools { from: from.clone(), fraction: 1.0 }
+                Init::pools(from.clone())
             }
             Init::Pools { from, .. } => {
                 return Err(crate::SkillError::Invalid(format!(

@@ -496,9 +496,10 @@ impl Task for ImitationTask {
         let r = &settings.reference;
         let last = r.frames() - 1;
         let from_pool = match &settings.init {
-            Init::Pools { fraction, .. } => {
+            Init::Pools { fraction, speed, .. } => {
                 let total: usize = settings.pools.iter().map(|p| p.states.len()).sum();
                 if total > 0 && rng.random_bool(*fraction) {
+                    let scale = if speed.0 < speed.1 { rng.random_range(speed.0..=speed.1) } else { speed.0 };
                     let mut k = rng.random_range(0..total);
                     let mut chosen = None;
                     for pool in &settings.pools {
@@ -508,7 +509,7 @@ impl Task for ImitationTask {
                         }
                         k -= pool.states.len();
                     }
-                    chosen
+                    chosen.map(|s| (s, scale))
                 } else {
                     None
                 }
@@ -516,8 +517,8 @@ impl Task for ImitationTask {
             _ => None,
         };
         match (from_pool, &settings.init) {
-            (Some(state), _) => {
-                apply_pool_state(state, world, x, y, heading);
+            (Some((state, k)), _) => {
+                apply_pool_state(state, world, x, y, heading, k);
                 // The clip starts at frame 0 where the pool state stands.
                 self.yaw = heading - r.heading[0];
                 self.anchor = [r.root_pos[0][0], r.root_pos[0][1]];
@@ -638,6 +639,6 @@ pub fn catch_throw(
     spec.throw_with(target, yaw, v_x * flight, v_x, lateral, d_z, rng)
 }
 
-fn apply_pool_state(state: &PoolState, world: &mut World, x: f64, y: f64, heading: f64) {
-    state.apply(world, x, y, heading).expect("pool states are validated on load");
+fn apply_pool_state(state: &PoolState, world: &mut World, x: f64, y: f64, heading: f64, k: f64) {
+    state.apply_at_speed(world, x, y, heading, k).expect("pool states are validated on load");
 }

@@ -38,7 +38,7 @@ pub fn play(setup: &SkillSetup, skill: &mut LibrarySkill, start: StartFrom, seed
     let mut settings: TaskSettings = (*setup.settings).clone();
     settings.init = match (start, &settings.init) {
         (StartFrom::ClipStart, _) => Init::Start,
-        (StartFrom::Predecessors, Init::Pools { from, .. }) => Init::Pools { from: from.clone(), fraction: 1.0 },
+        (StartFrom::Predecessors, Init::Pools { from, .. }) => Init::pools(from.clone()),
         (StartFrom::Predecessors, _) => {
             return Err(crate::SkillError::Invalid(format!(
                 "skill `{}` has no predecessor pools: its spec's init is not Pools",

@@ -52,17 +52,23 @@ impl PoolState {
 
     /// Puts the character in this state at `(x, y)` facing `yaw`.
     pub fn apply(&self, world: &mut World, x: f64, y: f64, yaw: f64) -> Result<()> {
+        self.apply_at_speed(world, x, y, yaw, 1.0)
+    }
+
+    /// [`PoolState::apply`] with every velocity (root and joints) scaled by `k`: `0` freezes
+    /// the pose, `1` keeps the recorded momentum.
+    pub fn apply_at_speed(&self, world: &mut World, x: f64, y: f64, yaw: f64, k: f64) -> Result<()> {
         let (s, c) = yaw.sin_cos();
-        let v = self.velocity;
-        let root_vel =
-            [c * v[0] - s * v[1], s * v[0] + c * v[1], v[2], self.angular[0], self.angular[1], self.angular[2]];
-        world.set_motion(
-            [x, y, self.height],
-            mul(yaw_quat(yaw), self.quat),
-            &self.joints,
-            root_vel,
-            Some(&self.joint_vel),
-        )?;
+        let v = self.velocity.map(|v| k * v);
+        let w = self.angular.map(|w| k * w);
+        let root_vel = [c * v[0] - s * v[1], s * v[0] + c * v[1], v[2], w[0], w[1], w[2]];
+        let pose = mul(yaw_quat(yaw), self.quat);
+        if k == 1.0 {
+            world.set_motion([x, y, self.height], pose, &self.joints, root_vel, Some(&self.joint_vel))?;
+        } else {
+            let joint_vel: Vec<f64> = self.joint_vel.iter().map(|v| k * v).collect();
+            world.set_motion([x, y, self.height], pose, &self.joints, root_vel, Some(&joint_vel))?;
+        }
         Ok(())
     }
 }

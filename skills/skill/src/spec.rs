@@ -279,7 +279,23 @@ pub enum Init {
         from: Vec<String>,
         /// Share of episodes started from the pools.
         fraction: f64,
+        /// The pool state's velocities (root and joints) are scaled by a factor drawn
+        /// uniformly from this range per episode: a curriculum from frozen poses towards the
+        /// predecessors' full momentum. `(1, 1)` (the default) starts them as recorded.
+        #[serde(default = "full_speed")]
+        speed: (f64, f64),
     },
+}
+
+fn full_speed() -> (f64, f64) {
+    (1.0, 1.0)
+}
+
+impl Init {
+    /// Starts from the end poses of `from` only, as recorded (evaluation).
+    pub fn pools(from: Vec<String>) -> Self {
+        Init::Pools { from, fraction: 1.0, speed: full_speed() }
+    }
 }
 
 /// When an episode ends early.
@@ -382,9 +398,12 @@ impl SpecFile {
         if spec.clip.looping && spec.clip.hold_s > 0.0 {
             return bad("clip cannot both loop and hold its last frame (`looping` and `hold_s`)".into());
         }
-        if let Init::Pools { fraction, from } = &spec.init {
+        if let Init::Pools { fraction, from, speed } = &spec.init {
             if !(0.0..=1.0).contains(fraction) {
                 return bad(format!("init Pools fraction must be in [0, 1], got {fraction}"));
+            }
+            if !(speed.0.is_finite() && speed.1.is_finite() && 0.0 <= speed.0 && speed.0 <= speed.1) {
+                return bad(format!("init Pools speed must be a range (lo, hi) with 0 <= lo <= hi, got {speed:?}"));
             }
             if from.is_empty() {
                 return bad("init Pools names no predecessor skill".into());

@@ -133,6 +133,22 @@ fn pools_round_trip_and_restore_the_state() {
     for k in 0..3 {
         assert!((again.velocity[k] - state.velocity[k]).abs() < 1e-9);
     }
+    // At a reduced speed (fine-tuning's `speed` curriculum) the pose is the same and every
+    // velocity is scaled; at speed 0 the pose is frozen.
+    assert!(state.joint_vel.iter().any(|v| v.abs() > 0.1) && state.velocity[0].abs() > 0.1, "walk moves");
+    for k in [0.0, 0.4] {
+        state.apply_at_speed(env.world_mut(), 1.0, 2.0, -1.0, k).expect("apply at speed");
+        let slow = PoolState::capture(env.world());
+        for (a, b) in slow.joints.iter().zip(&state.joints) {
+            assert!((a - b).abs() < 1e-9);
+        }
+        for (a, b) in slow.joint_vel.iter().zip(&state.joint_vel).chain(slow.velocity.iter().zip(&state.velocity)) {
+            assert!((a - k * b).abs() < 1e-9, "{a} is not {k} × {b}");
+        }
+        for (a, b) in slow.angular.iter().zip(&state.angular) {
+            assert!((a - k * b).abs() < 1e-9);
+        }
+    }
     // A pool with a NaN is refused, naming the state.
     std::fs::write(&path, std::fs::read_to_string(&path).unwrap().replacen("height: ", "height: NaN, _x: ", 1))
         .unwrap();
@@ -274,6 +290,13 @@ fn bad_specs_are_refused_with_the_place() {
     assert_ne!(bad, text);
     let err = SpecFile::parse(&dir.join("w.ron"), &bad).expect_err("loop and hold").to_string();
     assert!(err.contains("w.ron") && err.contains("hold"), "{err}");
+    let bad = text.replace("init: Reference", "init: Pools(from: [\"turn_left\"], fraction: 0.5, speed: (1.0, 0.5))");
+    assert_ne!(bad, text);
+    let err = SpecFile::parse(&dir.join("w.ron"), &bad).expect_err("backwards speed range").to_string();
+    assert!(err.contains("w.ron") && err.contains("speed"), "{err}");
+    let good = text.replace("init: Reference", "init: Pools(from: [\"turn_left\"], fraction: 0.5, speed: (0.0, 1.0))");
+    let spec = SpecFile::parse(&dir.join("w.ron"), &good).expect("a speed range parses");
+    assert!(matches!(spec.spec.init, repertoire_skill::spec::Init::Pools { speed: (0.0, 1.0), .. }));
     let bad = text.replace("pack:deepmimic/walk_forward.txt", "pack:deepmimic/nope.txt");
     let spec = SpecFile::parse(&specs().join("w.ron"), &bad).expect("parses");
     let err = SkillSetup::new(spec, &dir).err().expect("missing clip").to_string();
