@@ -64,6 +64,10 @@ pub struct MetaSkill {
     pub holds: bool,
     /// Whether it observes a 2-D target (walk, stage 2).
     pub uses_target: bool,
+    /// A cycle's joint angles and velocities per frame (`frames × dof`; from the manifest's
+    /// clip record, empty when it has none): choosing the skill picks the cycle up at the frame
+    /// nearest the character's pose instead of its first frame.
+    pub cycle: (Vec<f32>, Vec<f32>),
 }
 
 impl MetaSkill {
@@ -80,6 +84,27 @@ impl MetaSkill {
     /// for holding ones (a sit chosen again stays seated).
     pub fn ended(&self, phase: usize) -> bool {
         !self.looping && !self.holds && phase + 1 >= self.frames.max(2)
+    }
+
+    /// The frame the skill starts at when chosen with the body at joint angles `q` and
+    /// velocities `v`: the nearest frame of a cycle it has a table for, else the first.
+    pub fn entry_frame(&self, q: &[f64], v: &[f64]) -> usize {
+        let dof = q.len();
+        if !self.looping
+            || dof == 0
+            || self.cycle.0.len() != self.frames * dof
+            || self.cycle.1.len() != self.cycle.0.len()
+        {
+            return 0;
+        }
+        repertoire_skill::reference::nearest_pose(
+            &self.cycle.0,
+            &self.cycle.1,
+            dof,
+            self.frames.saturating_sub(1).max(1),
+            q,
+            v,
+        )
     }
 }
 
@@ -168,6 +193,7 @@ impl MetaSetup {
                 looping: s.manifest.spec.clip.looping,
                 holds: s.manifest.spec.clip.hold_s > 0.0,
                 uses_target,
+                cycle: (s.manifest.clip.cycle_joints.clone(), s.manifest.clip.cycle_joint_vel.clone()),
                 layout,
                 props,
                 policy: s.policy,
@@ -221,6 +247,9 @@ pub struct MetaEnv {
     /// Per skill: the props its prop features read in this episode (see [`SkillProps`]).
     bound: Vec<Vec<usize>>,
     skill_act: Vec<f32>,
+    /// The body's joint angles and velocities when a skill is chosen (its entry frame).
+    entry_q: Vec<f64>,
+    entry_v: Vec<f64>,
     targets: Vec<f64>,
     lo: Vec<f32>,
     hi: Vec<f32>,
@@ -258,6 +287,8 @@ impl MetaEnv {
             skill_obs: vec![0.0; widest],
             bound: setup.skills.iter().map(|s| s.props.ids.clone()).collect(),
             skill_act: vec![0.0; dof],
+            entry_q: vec![0.0; setup.model.index.joints.len()],
+            entry_v: vec![0.0; setup.model.index.joints.len()],
             targets: vec![0.0; dof],
             lo: vec![0.0, -3.0, -3.0],
             hi: vec![(k.max(1) - 1) as f32, 3.0, 3.0],
@@ -484,7 +515,9 @@ impl Env for MetaEnv {
             self.bind_props(option);
         }
         if self.current != Some(option) {
-            self.phase = 0;
+            self.world.joint_angles(&mut self.entry_q);
+            self.world.joint_velocities(&mut self.entry_v);
+            self.phase = self.setup.skills[option].entry_frame(&self.entry_q, &self.entry_v);
             self.bind_props(option);
             self.switches += u32::from(self.current.is_some());
             self.current = Some(option);

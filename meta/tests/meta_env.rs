@@ -150,6 +150,44 @@ fn a_sit_chosen_again_holds_its_seated_frame_while_a_turn_replays() {
 }
 
 #[test]
+fn a_walk_chosen_after_a_turn_picks_its_cycle_up_at_the_nearest_frame() {
+    let s = setup(None);
+    let (walk, turn) = (&s.skills[0], &s.skills[1]);
+    assert_eq!((walk.name.as_str(), turn.name.as_str()), ("walk", "turn_left"));
+    let dof = s.model.index.joints.len();
+    assert!(walk.looping && walk.cycle.0.len() == walk.frames * dof, "walk's manifest carries its cycle");
+    assert!(turn.cycle.0.is_empty(), "a clip that ends has no cycle table");
+    let row = |t: &[f32], f: usize| t[f * dof..(f + 1) * dof].iter().map(|&x| f64::from(x)).collect::<Vec<_>>();
+    for f in [0, 17, 50] {
+        let (q, v) = (row(&walk.cycle.0, f), row(&walk.cycle.1, f));
+        assert_eq!(walk.entry_frame(&q, &v), f);
+        assert_eq!(turn.entry_frame(&q, &v), 0, "a turn always starts at its first frame");
+    }
+
+    // In the environment: a turn decision, then walk, which starts where the body's pose is.
+    let mut env = MetaEnv::new(Arc::clone(&s));
+    let mut rng = EnvRng::seed_from_u64(5);
+    let mut obs = vec![0.0; env.obs_dim()];
+    env.reset(&mut rng, &mut obs);
+    if env.step(&[1.0, 0.0, 0.0], &mut obs).terminated {
+        return; // a barely trained turn may fall; the checks above still stand
+    }
+    let (mut q, mut v) = (vec![0.0; dof], vec![0.0; dof]);
+    env.world().joint_angles(&mut q);
+    env.world().joint_velocities(&mut v);
+    let entry = walk.entry_frame(&q, &v);
+    let t0 = env.world().time();
+    if env.step(&[0.0, 0.0, 0.0], &mut obs).terminated {
+        return;
+    }
+    let ticks = ((env.world().time() - t0) * s.control_hz()).round() as usize;
+    let phi = s.layout.size + s.task.extra_dim() + s.skills.len();
+    let cycle = walk.frames - 1;
+    let expected = ((entry + ticks) % cycle) as f32 / cycle as f32;
+    assert!((obs[phi] - expected).abs() < 1e-6, "walk phase {} after entering at frame {entry}", obs[phi]);
+}
+
+#[test]
 fn training_writes_a_controller_and_evaluation_is_reproducible() {
     let s = setup(Some(SkillGraph::chain(&["walk", "turn_left", "sit"])));
     let dir = std::env::temp_dir().join(format!("repertoire-meta-train-{}", std::process::id()));

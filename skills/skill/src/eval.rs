@@ -9,7 +9,7 @@ use repertoire_humanoid::HumanoidEnv;
 use repertoire_learn::env::{Env, EnvRng};
 use serde::{Deserialize, Serialize};
 
-use rand::SeedableRng;
+use rand::{Rng, SeedableRng};
 
 use crate::error::Result;
 use crate::imitation::{ImitationTask, TaskSettings};
@@ -130,6 +130,12 @@ pub fn evaluate(
         mean_return: 0.0,
     };
     let mut pool = Vec::new();
+    // A cycle (walk) has no end pose: every trial ends at the same phase of it. Its pool takes
+    // the state at a random moment of each successful trial instead (drawn from a stream of its
+    // own, so the trials themselves are unchanged), covering the whole cycle.
+    let mut moments = EnvRng::seed_from_u64(seed ^ 0x6d6f_6d65_6e74);
+    let mut capture_at = vec![0u32; batch];
+    let mut captured: Vec<Option<PoolState>> = vec![None; batch];
 
     let begin = |env: &mut HumanoidEnv<ImitationTask>, rng: &mut EnvRng, o: &mut [f32]| -> u32 {
         env.reset(rng, o);
@@ -141,9 +147,11 @@ pub fn evaluate(
         };
         left.max(1)
     };
+    let mut draw_moment = |len: u32| if looping { moments.random_range(1..=len.max(1)) } else { 0 };
     for i in 0..batch {
         if started < trials {
             max_len[i] = begin(&mut envs[i], &mut rngs[i], &mut obs[i * od..(i + 1) * od]);
+            capture_at[i] = draw_moment(max_len[i]);
             started += 1;
         } else {
             active[i] = false;
@@ -167,10 +175,15 @@ pub fn evaluate(
         for (i, out) in outcomes.into_iter().enumerate() {
             let Some(out) = out else { continue };
             returns[i] += f64::from(out.reward);
+            let env = &mut envs[i];
+            if looping && !out.terminated && env.steps() == capture_at[i] {
+                let mut state = PoolState::capture(env.world());
+                state.phase = env.task().phase();
+                captured[i] = Some(state);
+            }
             if !(out.terminated || out.truncated) {
                 continue;
             }
-            let env = &mut envs[i];
             let len = env.steps();
             let on_seat = out.terms[5] > 0.5;
             let object_done = out.terms[6] > 0.5;
@@ -187,13 +200,18 @@ pub fn evaluate(
             report.normalized_return += returns[i] / (max_reward_per_step * f64::from(max_len[i])).max(1e-9);
             report.mean_return += returns[i];
             if success {
-                let mut state = PoolState::capture(env.world());
-                state.phase = env.task().phase();
+                let state = captured[i].take().unwrap_or_else(|| {
+                    let mut state = PoolState::capture(env.world());
+                    state.phase = env.task().phase();
+                    state
+                });
                 pool.push(state);
             }
+            captured[i] = None;
             returns[i] = 0.0;
             if started < trials {
                 max_len[i] = begin(env, &mut rngs[i], &mut obs[i * od..(i + 1) * od]);
+                capture_at[i] = draw_moment(max_len[i]);
                 started += 1;
             } else {
                 active[i] = false;

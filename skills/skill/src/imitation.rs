@@ -519,11 +519,14 @@ impl Task for ImitationTask {
         match (from_pool, &settings.init) {
             (Some((state, k)), _) => {
                 apply_pool_state(state, world, x, y, heading, k);
-                // The clip starts at frame 0 where the pool state stands.
-                self.yaw = heading - r.heading[0];
-                self.anchor = [r.root_pos[0][0], r.root_pos[0][1]];
+                // The clip starts where the pool state stands: at its first frame, or, for a
+                // cycle (walk), at the frame nearest the state's pose, so a character arriving
+                // mid-stride is not asked to switch feet.
+                let f = if r.looping { r.nearest_frame(&state.joints, &state.joint_vel) } else { 0 };
+                self.yaw = heading - r.heading[f];
+                self.anchor = [r.root_pos[f][0], r.root_pos[f][1]];
                 self.origin = [x, y];
-                self.phase = 0;
+                self.phase = f;
             }
             (None, Init::Start) => self.place_reference(world, 0, x, y, heading),
             (None, _) => {

@@ -44,6 +44,14 @@ pub struct ClipRecord {
     pub origin: String,
     /// Frames at the control rate.
     pub frames: usize,
+    /// For a cycle (walk): its joint angles and velocities per control frame (`frames × dof`
+    /// each), so a meta-controller can pick it up at the frame nearest the character's pose
+    /// ([`crate::reference::nearest_pose`]). Empty for other clips and older manifests.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub cycle_joints: Vec<f32>,
+    /// See `cycle_joints`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub cycle_joint_vel: Vec<f32>,
 }
 
 /// `manifest.ron` of one skill.

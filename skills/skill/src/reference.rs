@@ -156,6 +156,13 @@ impl Reference {
         self.root_pos.len()
     }
 
+    /// The frame whose joint angles and velocities are nearest `joints` / `joint_vel` (a cycle's
+    /// last frame repeats its first and is never chosen): where a looping clip picks up a
+    /// character that arrives mid-stride from another skill.
+    pub fn nearest_frame(&self, joints: &[f64], joint_vel: &[f64]) -> usize {
+        nearest_pose(&self.joints, &self.joint_vel, self.dof, self.frames().saturating_sub(1).max(1), joints, joint_vel)
+    }
+
     /// Seconds from the first to the last frame.
     pub fn duration(&self) -> f64 {
         (self.frames() - 1) as f64 * self.dt
@@ -180,4 +187,32 @@ impl Reference {
     pub fn heading_change(&self) -> f64 {
         self.heading[self.frames() - 1] - self.heading[0]
     }
+}
+
+/// Weight of joint velocities (rad/s) against joint angles (rad) in [`nearest_pose`]: enough to
+/// tell a leg swinging forward from one swinging back through the same angle.
+pub const PHASE_VELOCITY_WEIGHT: f64 = 0.01;
+
+/// The index among the first `frames` rows of `table_q`/`table_v` (`dof` values per row) nearest
+/// `q`/`v` in `Σ wrap(Δq)² + w·Σ Δv²` with `w` = [`PHASE_VELOCITY_WEIGHT`].
+pub fn nearest_pose<T: Copy + Into<f64>>(
+    table_q: &[T],
+    table_v: &[T],
+    dof: usize,
+    frames: usize,
+    q: &[f64],
+    v: &[f64],
+) -> usize {
+    let mut best = (0, f64::INFINITY);
+    for f in 0..frames.min(table_q.len() / dof.max(1)) {
+        let rows = (&table_q[f * dof..(f + 1) * dof], &table_v[f * dof..(f + 1) * dof]);
+        let dq: f64 =
+            rows.0.iter().zip(q).map(|(&a, b)| repertoire_scenes::math::wrap_angle(a.into() - b).powi(2)).sum();
+        let dv: f64 = rows.1.iter().zip(v).map(|(&a, b)| (a.into() - b).powi(2)).sum();
+        let d = dq + PHASE_VELOCITY_WEIGHT * dv;
+        if d < best.1 {
+            best = (f, d);
+        }
+    }
+    best.0
 }

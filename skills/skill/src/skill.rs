@@ -177,11 +177,15 @@ impl SkillSetup {
 
     /// What the library records about the clip.
     pub fn clip_record(&self) -> ClipRecord {
+        let r = &self.settings.reference;
+        let table = |v: &[f64]| if r.looping { v.iter().map(|&x| x as f32).collect() } else { Vec::new() };
         ClipRecord {
             name: self.clip.name.clone(),
             hash: self.clip.content_hash(),
             origin: self.clip.origin.clone(),
-            frames: self.settings.reference.frames(),
+            frames: r.frames(),
+            cycle_joints: table(&r.joints),
+            cycle_joint_vel: table(&r.joint_vel),
         }
     }
 }

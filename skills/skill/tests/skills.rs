@@ -368,3 +368,77 @@ fn sit_episodes_start_clear_of_the_chair_with_the_seat_jittered_and_the_seated_c
     }
     assert!(seated > 0 && moved > 0, "40 starts cover seated frames ({seated}) and jittered standing ones ({moved})");
 }
+
+#[test]
+fn a_cycle_is_picked_up_at_the_frame_nearest_the_arriving_pose_and_its_pool_covers_the_cycle() {
+    let lib = temp("cycle");
+    let s = setup("walk.ron", &lib);
+    let r = &s.settings.reference;
+    assert!(r.looping);
+    // Every frame of the cycle (its last repeats its first) is the nearest to itself.
+    for f in 0..r.frames() - 1 {
+        assert_eq!(r.nearest_frame(r.joints_at(f), r.joint_vel_at(f)), f, "frame {f}");
+    }
+
+    // A walk state at frame 23, stored as a predecessor's end pose: a walk fine-tuned from
+    // that pool starts its clip at frame 23, not at its first frame.
+    let mut env = s.env();
+    let mut task = ImitationTask::new(s.settings.clone());
+    task.place_at_frame(env.world_mut(), 23, 0.0, 0.0, 0.0);
+    let state = PoolState::capture(env.world());
+    let pool = Pool { skill: "turn_left".into(), body_hash: s.model.body.content_hash(), states: vec![state] };
+    std::fs::create_dir_all(lib.join("turn_left")).unwrap();
+    pool.save(&lib.join("turn_left").join("end_poses.ron")).unwrap();
+    let mut spec = SpecFile::load(&specs().join("walk.ron")).unwrap();
+    spec.spec.init = repertoire_skill::spec::Init::pools(vec!["turn_left".into()]);
+    let from_pool = SkillSetup::new(spec, &lib).expect("walk over the turn's pool");
+    let mut env = from_pool.env();
+    let mut rng = EnvRng::seed_from_u64(4);
+    let mut obs = vec![0.0; env.obs_dim()];
+    for _ in 0..3 {
+        env.reset(&mut rng, &mut obs);
+        assert_eq!(env.task().phase(), 23);
+    }
+
+    // The manifest of a cycle carries its frame table (for the meta-controller); a clip that
+    // ends does not.
+    let record = s.clip_record();
+    assert_eq!(record.cycle_joints.len(), r.frames() * r.dof);
+    assert_eq!(record.cycle_joint_vel.len(), r.frames() * r.dof);
+    let f = repertoire_skill::reference::nearest_pose(
+        &record.cycle_joints,
+        &record.cycle_joint_vel,
+        r.dof,
+        r.frames() - 1,
+        r.joints_at(40),
+        r.joint_vel_at(40),
+    );
+    assert_eq!(f, 40);
+    assert!(setup("turn_left.ron", &temp("cycle-turn")).clip_record().cycle_joints.is_empty());
+
+    // A cycle has no end pose (every trial ends at the same phase), so its pool keeps a state
+    // from a random moment of each successful trial: the phases spread over the cycle.
+    let mut short = SpecFile::load(&specs().join("walk.ron")).unwrap();
+    short.spec.episode_s = 0.6;
+    let short = SkillSetup::new(short, &lib).unwrap();
+    let opts = TrainOptions {
+        library: lib.clone(),
+        run_dir: lib.join("run"),
+        iterations: Some(1),
+        envs: Some(2),
+        seed: Some(5),
+        resume: None,
+        init_from_library: false,
+        checkpoint_every: 0,
+        serial: false,
+        progress: false,
+        command: "test".into(),
+    };
+    train(&short, &opts).expect("train");
+    let mut skill = library::load(&lib, "walk").expect("load");
+    let (report, ends) = evaluate(&short, &mut skill, StartFrom::ClipStart, 12, 4, 1).expect("evaluate");
+    assert_eq!(ends.len(), report.successes);
+    assert!(report.successes >= 6, "only {} of 12 short walks stood", report.successes);
+    let phases: std::collections::BTreeSet<usize> = ends.iter().map(|e| e.phase).collect();
+    assert!(phases.len() >= 4, "pool phases {phases:?} do not spread over the cycle");
+}
