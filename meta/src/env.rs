@@ -51,6 +51,8 @@ pub struct MetaSkill {
     pub name: String,
     /// Its frozen policy.
     pub policy: ActingPolicy,
+    /// Its policy file's checksum (`policy_fnv1a` of its library manifest).
+    pub policy_fnv1a: u64,
     /// Its observation layout on this scene.
     pub layout: ObservationLayout,
     /// The scene's props its prop features read (bound by the scenario's `bind` map).
@@ -194,6 +196,7 @@ impl MetaSetup {
                 holds: s.manifest.spec.clip.hold_s > 0.0,
                 uses_target,
                 cycle: (s.manifest.clip.cycle_joints.clone(), s.manifest.clip.cycle_joint_vel.clone()),
+                policy_fnv1a: s.manifest.policy_fnv1a,
                 layout,
                 props,
                 policy: s.policy,

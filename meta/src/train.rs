@@ -26,6 +26,11 @@ pub struct MetaManifest {
     pub scenario: String,
     /// Skills in option order.
     pub skills: Vec<String>,
+    /// Each skill's policy checksum (`policy_fnv1a` of its library manifest), in option order:
+    /// a controller is refused over a library whose skills were retrained since. Empty in
+    /// manifests written before skills were pinned (loaded with a warning).
+    #[serde(default)]
+    pub skill_weights: Vec<u64>,
     /// Body content hash.
     pub body_hash: String,
     /// Observation width.
@@ -91,6 +96,7 @@ pub fn train(setup: Arc<MetaSetup>, opts: &MetaTrainOptions) -> Result<(MetaMani
     let manifest = MetaManifest {
         scenario: setup.model.scenario.path.display().to_string(),
         skills: setup.skills.iter().map(|s| s.name.clone()).collect(),
+        skill_weights: setup.skills.iter().map(|s| s.policy_fnv1a).collect(),
         body_hash: setup.model.body.content_hash(),
         obs_dim: setup.obs_dim(),
         ppo: ppo.cfg.clone(),
@@ -224,6 +230,41 @@ pub fn load(dir: &Path, setup: &MetaSetup) -> Result<(MetaManifest, ActingHybrid
             setup.obs_dim()
         )));
     }
+    check_skill_weights(&path, &manifest, setup)?;
     let head = ActingHybrid::load(&dir.join("meta.safetensors")).map_err(|e| MetaError::Invalid(e.to_string()))?;
     Ok((manifest, head))
+}
+
+/// Refuses a controller whose manifest pins other skill weights than the library's.
+fn check_skill_weights(path: &Path, manifest: &MetaManifest, setup: &MetaSetup) -> Result<()> {
+    if manifest.skill_weights.is_empty() {
+        tracing::warn!(
+            manifest = %path.display(),
+            "the controller records no skill weights (trained before skills were pinned): \
+             cannot check that the library holds the skills it was trained over"
+        );
+        return Ok(());
+    }
+    if manifest.skill_weights.len() != setup.skills.len() {
+        return Err(MetaError::Invalid(format!(
+            "{}: records {} skill weights for {} skills",
+            path.display(),
+            manifest.skill_weights.len(),
+            setup.skills.len()
+        )));
+    }
+    for (skill, &trained) in setup.skills.iter().zip(&manifest.skill_weights) {
+        if skill.policy_fnv1a != trained {
+            return Err(MetaError::Invalid(format!(
+                "{}: trained over skill `{}` with weights {trained:016x}, but the library's `{}` has \
+                 weights {:016x} (it was retrained since): retrain the controller, or point \
+                 --library at the library it was trained over",
+                path.display(),
+                skill.name,
+                skill.name,
+                skill.policy_fnv1a
+            )));
+        }
+    }
+    Ok(())
 }

@@ -232,4 +232,23 @@ fn training_writes_a_controller_and_evaluation_is_reproducible() {
     let full = setup(None);
     let err = load(&dir.join("meta"), &full).expect_err("different skills").to_string();
     assert!(err.contains("meta.ron"), "{err}");
+
+    // The controller pins its skills' weights: over a library whose turn_left was retrained
+    // (here: its recorded checksum changed) it is refused, naming the skill; a manifest from
+    // before skills were pinned still loads.
+    let expected: Vec<u64> = s.skills.iter().map(|k| k.policy_fnv1a).collect();
+    assert_eq!(manifest.skill_weights, expected);
+    let meta_ron = dir.join("meta").join("meta.ron");
+    let text = std::fs::read_to_string(&meta_ron).unwrap();
+    let mut other = manifest.clone();
+    other.skill_weights[1] ^= 1;
+    let pretty = ron::ser::PrettyConfig::new();
+    std::fs::write(&meta_ron, ron::ser::to_string_pretty(&other, pretty.clone()).unwrap()).unwrap();
+    let err = load(&dir.join("meta"), &s).expect_err("retrained skill").to_string();
+    assert!(err.contains("meta.ron") && err.contains("`turn_left`") && err.contains("retrained"), "{err}");
+    other.skill_weights.clear();
+    std::fs::write(&meta_ron, ron::ser::to_string_pretty(&other, pretty).unwrap()).unwrap();
+    load(&dir.join("meta"), &s).expect("an unpinned manifest loads");
+    std::fs::write(&meta_ron, text).unwrap();
+    load(&dir.join("meta"), &s).expect("the pinned manifest loads");
 }
