@@ -25,19 +25,7 @@ fn library() -> &'static Path {
         for name in ["walk", "turn_left", "turn_right", "sit"] {
             let spec = SpecFile::load(&specs.join(format!("{name}.ron"))).expect("spec");
             let setup = SkillSetup::new(spec, &lib).expect("skill setup (needs the clip pack)");
-            let opts = TrainOptions {
-                library: lib.clone(),
-                run_dir: lib.join(format!("run-{name}")),
-                iterations: Some(1),
-                envs: Some(2),
-                seed: Some(1),
-                resume: None,
-                init_from_library: false,
-                checkpoint_every: 0,
-                serial: false,
-                progress: false,
-                command: "test".into(),
-            };
+            let opts = TrainOptions::quick(&lib, &lib.join(format!("run-{name}")), 1, 2, 1);
             repertoire_skill::train::train(&setup, &opts).expect("train");
         }
         lib

@@ -42,6 +42,27 @@ pub struct TrainOptions {
     pub command: String,
 }
 
+impl TrainOptions {
+    /// A short, quiet run (tests and tools): `iterations` PPO iterations over `envs`
+    /// environments with `seed`, into `library`, with its run directory at `run_dir`; no
+    /// progress bar, one checkpoint at the end, the spec's own policy as the start.
+    pub fn quick(library: &Path, run_dir: &Path, iterations: usize, envs: usize, seed: u64) -> Self {
+        TrainOptions {
+            library: library.to_path_buf(),
+            run_dir: run_dir.to_path_buf(),
+            iterations: Some(iterations),
+            envs: Some(envs),
+            seed: Some(seed),
+            resume: None,
+            init_from_library: false,
+            checkpoint_every: 0,
+            serial: false,
+            progress: false,
+            command: format!("quick run: {iterations} iterations, {envs} envs, seed {seed}"),
+        }
+    }
+}
+
 /// What a training run produced.
 #[derive(Debug, Clone)]
 pub struct TrainOutcome {

@@ -260,19 +260,7 @@ fn catch_throws_the_ball_at_the_hands_and_ends_when_it_lands() {
 fn a_tiny_catch_training_runs_end_to_end() {
     let lib = temp("train");
     let s = setup("catch.ron");
-    let opts = TrainOptions {
-        library: lib.clone(),
-        run_dir: lib.join("run"),
-        iterations: Some(2),
-        envs: Some(4),
-        seed: Some(3),
-        resume: None,
-        init_from_library: false,
-        checkpoint_every: 0,
-        serial: false,
-        progress: false,
-        command: "test".into(),
-    };
+    let opts = TrainOptions::quick(&lib, &lib.join("run"), 2, 4, 3);
     let out = train(&s, &opts).expect("train");
     assert_eq!(out.history.len(), 2);
     let csv = std::fs::read_to_string(out.run_dir.join("metrics.csv")).expect("metrics");

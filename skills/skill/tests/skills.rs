@@ -159,19 +159,7 @@ fn pools_round_trip_and_restore_the_state() {
 fn a_trained_skill_round_trips_through_the_library_and_refuses_another_body() {
     let lib = temp("library");
     let s = setup("turn_left.ron", &lib);
-    let opts = TrainOptions {
-        library: lib.clone(),
-        run_dir: lib.join("run"),
-        iterations: Some(2),
-        envs: Some(4),
-        seed: Some(3),
-        resume: None,
-        init_from_library: false,
-        checkpoint_every: 0,
-        serial: false,
-        progress: false,
-        command: "test".into(),
-    };
+    let opts = TrainOptions::quick(&lib, &lib.join("run"), 2, 4, 3);
     let out = train(&s, &opts).expect("train");
     assert_eq!(out.history.len(), 2);
     assert!(out.run_dir.join("metrics.csv").exists());
@@ -421,19 +409,7 @@ fn a_cycle_is_picked_up_at_the_frame_nearest_the_arriving_pose_and_its_pool_cove
     let mut short = SpecFile::load(&specs().join("walk.ron")).unwrap();
     short.spec.episode_s = 0.6;
     let short = SkillSetup::new(short, &lib).unwrap();
-    let opts = TrainOptions {
-        library: lib.clone(),
-        run_dir: lib.join("run"),
-        iterations: Some(1),
-        envs: Some(2),
-        seed: Some(5),
-        resume: None,
-        init_from_library: false,
-        checkpoint_every: 0,
-        serial: false,
-        progress: false,
-        command: "test".into(),
-    };
+    let opts = TrainOptions::quick(&lib, &lib.join("run"), 1, 2, 5);
     train(&short, &opts).expect("train");
     let mut skill = library::load(&lib, "walk").expect("load");
     let (report, ends) = evaluate(&short, &mut skill, StartFrom::ClipStart, 12, 4, 1).expect("evaluate");
