@@ -128,6 +128,21 @@ fn a_ball_in_the_bucket_earns_reward_while_it_stays_there() {
     // Beside the bucket on the floor: not in it.
     world.set_free_prop(spec.ball, [b[0] + 0.6, b[1], r], [1.0, 0.0, 0.0, 0.0], [0.0; 3], [0.0; 3]).unwrap();
     assert!(!TossFacts::measure(&world, &spec).in_bucket);
+
+    // A ball knocked into the bucket without a catch (a deflection off the body) counts as
+    // delivered: the task rewards the ball in the bucket however it got there, but there is no
+    // approach shaping without a catch.
+    world.set_free_prop(spec.ball, [b[0], b[1], r + 0.15], [1.0, 0.0, 0.0, 0.0], [0.0; 3], [0.0; 3]).unwrap();
+    let mut uncaught = TossJudge::new(3.0, 0.0, start);
+    for _ in 0..60 {
+        world.step(&action).unwrap();
+        let facts = TossFacts::measure(&world, &spec);
+        assert!(!facts.caught());
+        uncaught.tick(&facts, dt);
+    }
+    assert!(uncaught.delivered() && !uncaught.caught);
+    let reward = uncaught.take_reward(0.0, 1.0);
+    assert!((f64::from(reward) - uncaught.bucket_s).abs() < 1e-6, "{reward} for {} s", uncaught.bucket_s);
 }
 
 #[test]

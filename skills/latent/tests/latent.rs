@@ -220,9 +220,17 @@ fn weights_bc_clip_balanced_and_rwr() {
     let per_skill =
         |w: &[f32], s: u32| -> f32 { w.iter().zip(&data.skill).filter(|(_, k)| **k == s).map(|(w, _)| w).sum() };
     assert!((per_skill(&clip, 0) - per_skill(&clip, 1)).abs() < 1e-2 * per_skill(&clip, 0));
+    // Normalised to mean 1, then capped: uncapped the mean is 1 exactly; the cap only lowers
+    // weights, and every weight under it is the uncapped one.
+    let uncapped = transition_weights(data, Weighting::Rwr { temperature: 1.0, gamma: 0.95, max_weight: f32::MAX });
+    let mean_of = |w: &[f32]| w.iter().map(|&x| f64::from(x)).sum::<f64>() / w.len() as f64;
+    assert!((mean_of(&uncapped) - 1.0).abs() < 1e-4, "uncapped mean RWR weight {}", mean_of(&uncapped));
     let rwr = transition_weights(data, Weighting::Rwr { temperature: 1.0, gamma: 0.95, max_weight: 20.0 });
-    let mean = rwr.iter().sum::<f32>() / rwr.len() as f32;
-    assert!(rwr.iter().all(|&w| w > 0.0 && w <= 20.0) && (mean - 1.0).abs() < 0.05, "mean RWR weight {mean}");
+    assert!(rwr.iter().all(|&w| w > 0.0 && w <= 20.0), "RWR weights outside (0, 20]");
+    for (&w, &u) in rwr.iter().zip(&uncapped) {
+        assert_eq!(w, u.min(20.0));
+    }
+    assert!(mean_of(&rwr) <= 1.0 + 1e-4);
     // Steps with more imitation return ahead of them weigh more.
     let spread =
         rwr.iter().copied().fold(f32::NEG_INFINITY, f32::max) / rwr.iter().copied().fold(f32::INFINITY, f32::min);
