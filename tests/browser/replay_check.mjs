@@ -54,8 +54,15 @@ try {
   await page.waitForFunction(() => window.__replay && window.__replay.ready && window.__replay.drawn > 2, null,
     { timeout: 60_000 });
   const first = await page.evaluate(() => ({ ...window.__replay }));
-  await page.waitForTimeout(1500);
-  const later = await page.evaluate(() => ({ ...window.__replay }));
+  // Sample the playback for 1.5 s: a short recording loops, so a single later sample can land
+  // back on the first frame; any other frame seen means it advanced.
+  const seen = new Set([first.frame]);
+  let later = first;
+  for (let i = 0; i < 15; i++) {
+    await page.waitForTimeout(100);
+    later = await page.evaluate(() => ({ ...window.__replay }));
+    seen.add(later.frame);
+  }
   const shot = await page.screenshot({ path: shot_path });
   // Count distinct colours in the 3-D view (the canvas) by reading it back in the page.
   const colours = await page.evaluate(() => {
@@ -69,11 +76,11 @@ try {
     for (let i = 0; i < px.length; i += 4) seen.add((px[i] << 16) | (px[i + 1] << 8) | px[i + 2]);
     return seen.size;
   });
-  result = { frames: first.frames, first_frame: first.frame, later_frame: later.frame, drawn: later.drawn,
+  result = { frames: first.frames, first_frame: first.frame, later_frame: later.frame, frames_seen: seen.size, drawn: later.drawn,
     playing: later.playing, colours, screenshot_bytes: shot.length };
   if (colours < 50) problems.push(`the canvas looks blank: ${colours} distinct colours`);
-  if (!(later.frame !== first.frame && later.drawn > first.drawn)) {
-    problems.push(`playback did not advance: frame ${first.frame} → ${later.frame}, draws ${first.drawn} → ${later.drawn}`);
+  if (!(seen.size > 1 && later.drawn > first.drawn)) {
+    problems.push(`playback did not advance: frames seen ${[...seen].join(', ')}, draws ${first.drawn} → ${later.drawn}`);
   }
   if (!later.playing) problems.push('the page is not playing');
 } catch (e) {
