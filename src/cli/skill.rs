@@ -133,12 +133,6 @@ pub fn run(cmd: SkillCommand) -> Result<()> {
                 Some(&[lo, hi]) => (lo, hi),
                 Some(v) => bail!("--speed takes two numbers LO,HI, got {v:?}"),
             };
-            if !(speed.0.is_finite() && speed.1.is_finite() && 0.0 <= speed.0 && speed.0 <= speed.1) {
-                bail!("--speed LO,HI needs 0 <= LO <= HI, got {},{}", speed.0, speed.1);
-            }
-            if !(0.0..=1.0).contains(&fraction) {
-                bail!("--fraction must be in [0, 1], got {fraction}");
-            }
             train_cmd(&spec, Some((from, fraction, speed)), common, command)
         }
         SkillCommand::Play { spec, record, html, library, seed, from, web } => {
@@ -160,6 +154,7 @@ fn train_cmd(
     let init_from_library = finetune.is_some();
     if let Some((from, fraction, speed)) = finetune {
         spec.spec.init = Init::Pools { from, fraction, speed };
+        spec.spec.init.check().map_err(|m| anyhow::anyhow!("skill finetune --from/--fraction/--speed: {m}"))?;
     }
     let setup = SkillSetup::new(spec, &a.library)?;
     let s = &setup.spec.spec;

@@ -296,6 +296,22 @@ impl Init {
     pub fn pools(from: Vec<String>) -> Self {
         Init::Pools { from, fraction: 1.0, speed: full_speed() }
     }
+
+    /// Why these settings cannot start episodes, if they cannot (a spec's `init`, or the one
+    /// `skill finetune` builds from its options).
+    pub fn check(&self) -> std::result::Result<(), String> {
+        let Init::Pools { fraction, from, speed } = self else { return Ok(()) };
+        if !(0.0..=1.0).contains(fraction) {
+            return Err(format!("init Pools fraction must be in [0, 1], got {fraction}"));
+        }
+        if !(speed.0.is_finite() && speed.1.is_finite() && 0.0 <= speed.0 && speed.0 <= speed.1) {
+            return Err(format!("init Pools speed must be a range (lo, hi) with 0 <= lo <= hi, got {speed:?}"));
+        }
+        if from.is_empty() {
+            return Err("init Pools names no predecessor skill".into());
+        }
+        Ok(())
+    }
 }
 
 /// When an episode ends early.
@@ -398,16 +414,8 @@ impl SpecFile {
         if spec.clip.looping && spec.clip.hold_s > 0.0 {
             return bad("clip cannot both loop and hold its last frame (`looping` and `hold_s`)".into());
         }
-        if let Init::Pools { fraction, from, speed } = &spec.init {
-            if !(0.0..=1.0).contains(fraction) {
-                return bad(format!("init Pools fraction must be in [0, 1], got {fraction}"));
-            }
-            if !(speed.0.is_finite() && speed.1.is_finite() && 0.0 <= speed.0 && speed.0 <= speed.1) {
-                return bad(format!("init Pools speed must be a range (lo, hi) with 0 <= lo <= hi, got {speed:?}"));
-            }
-            if from.is_empty() {
-                return bad("init Pools names no predecessor skill".into());
-            }
+        if let Err(m) = spec.init.check() {
+            return bad(m);
         }
         for (name, v) in &spec.clip.pose_deg {
             if !v.is_finite() {
