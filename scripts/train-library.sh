@@ -1,20 +1,25 @@
 #!/usr/bin/env bash
-# Trains the default skill library (walk, turn_left, turn_right, sit) from scratch, the way the
-# shipped skills/library was made, and evaluates it (the sitting paper's two stages):
-#   1. each skill from its spec with reference-state initialisation;
-#   2. transition fine-tuning along the skill graph: the turns from walk's states, walk from the
-#      turns' end poses (the meta-controller walks on after a turn), sit from the turns' end poses;
-#   3. `skill eval` over TRIALS trials from the clip start and from predecessors' end poses
-#      (which also writes each skill's end-pose pool, used by the next stage).
-# The stage-one library is kept beside it as LIBRARY-stage1 (for the no-fine-tuning ablation).
-# Sit is fine-tuned in two rounds: SIT_FINETUNE_ITERS (600) iterations with 70 % of the episodes
-# from the turns' end poses, then SIT_FINETUNE2_ITERS (1000) more with 60 % (the rest keep
-# reference-state starts, so that sitting from a standing start is not forgotten).
-# Walk is a cycle: its pool holds a state from a random moment of each successful trial, and a
-# walk started from a turn's end pose picks its cycle up at the nearest frame. Walk's pool is
-# written before its own fine-tune (the turns were tuned from it) and kept after.
+# Trains the default skill library (walk, turn_left, turn_right, sit) from scratch and evaluates
+# it: the shipped skills/library is this script's output, and every skill's manifest records
+# the whole lineage (each stage's command, code version, figures and resulting policy hash).
+# The sitting paper's two stages, along the skill graph walk → turn → walk / sit:
+#   1. each skill from its spec with reference-state initialisation (kept as LIBRARY-stage1,
+#      which the "no transition fine-tuning" ablation runs on);
+#   2. transition fine-tuning from the predecessors' end-pose pools, which `skill eval` writes
+#      (successful end states from the clip start; a cycle's pool keeps a state from a random
+#      moment of each trial, and a cycle started from a pool state picks its clip up at the
+#      nearest frame):
+#        a. the turns from walk's states;
+#        b. walk from the turns' end poses (the meta-controller walks on after a turn);
+#        c. the turns again, from the fine-tuned walk's states;
+#        d. sit from the turns' end poses, in two rounds: SIT_FINETUNE_ITERS with 70 % of the
+#           episodes from the pools, then SIT_FINETUNE2_ITERS with 60 % (the rest keep
+#           reference-state starts, so that sitting from a standing start is not forgotten);
+#   3. `skill eval` over TRIALS trials from the clip start and from the predecessors' end poses
+#      after each stage; every table is also collected in LIBRARY/evals.md.
 # Usage: bash scripts/train-library.sh [LIBRARY] — env: TRIALS (1000), TURN_FINETUNE_ITERS (400),
-# WALK_FINETUNE_ITERS (800; 0 skips walk's fine-tune),
+# WALK_FINETUNE_ITERS (800; 0 skips walk's fine-tune and the turns' second one),
+# TURN_FINETUNE2_ITERS (400; 0 skips the turns' second fine-tune),
 # SIT_FINETUNE_ITERS (600), SIT_FINETUNE2_ITERS (1000; 0 skips the second round),
 # EXTRA (more arguments for every train/finetune, e.g. "--envs 8").
 set -euo pipefail
@@ -27,23 +32,47 @@ lib="${1:-skills/library}"
 trials="${TRIALS:-1000}"
 extra=(${EXTRA:-})
 specs=skills/skill/specs
+mkdir -p "$lib"
+evals="$lib/evals.md.partial"
+printf '# Skill library evaluations\n\nWritten by `scripts/train-library.sh` (%s trials per row).\n' "$trials" > "$evals"
+
+# `skill eval` with its table appended to evals.md under the command that made it.
+eval_skill() {
+  local out
+  out="$("$bin" skill eval "$@" --library "$lib" --trials "$trials")"
+  printf '%s\n' "$out"
+  printf '\n## `repertoire skill eval %s`\n\n%s\n' "$*" "$out" >> "$evals"
+}
+finetune() {
+  "$bin" skill finetune "$@" --library "$lib" "${extra[@]}"
+}
 
 for s in walk turn_left turn_right sit; do
   "$bin" skill train "$specs/$s.ron" --library "$lib" "${extra[@]}"
 done
-# Keep the stage-one library: the "no transition fine-tuning" ablation runs on it.
-rm -rf "$lib-stage1" && cp -r "$lib" "$lib-stage1"
-"$bin" skill eval "$specs/walk.ron" --library "$lib" --trials "$trials"
+rm -rf "$lib-stage1" && cp -r "$lib" "$lib-stage1" && rm -f "$lib-stage1/evals.md.partial"
+
+eval_skill "$specs/walk.ron"
 for s in turn_left turn_right; do
-  "$bin" skill finetune "$specs/$s.ron" --from walk --library "$lib" --iterations "${TURN_FINETUNE_ITERS:-400}" "${extra[@]}"
-  "$bin" skill eval "$specs/$s.ron" --library "$lib" --trials "$trials" --from walk
+  finetune "$specs/$s.ron" --from walk --iterations "${TURN_FINETUNE_ITERS:-400}"
+  eval_skill "$specs/$s.ron" --from walk
 done
 if [ "${WALK_FINETUNE_ITERS:-800}" != 0 ]; then
-  "$bin" skill finetune "$specs/walk.ron" --from turn_left,turn_right --library "$lib" --fraction 0.7 --iterations "${WALK_FINETUNE_ITERS:-800}" "${extra[@]}"
-  "$bin" skill eval "$specs/walk.ron" --library "$lib" --trials "$trials" --from turn_left,turn_right --no-pool
+  finetune "$specs/walk.ron" --from turn_left,turn_right --fraction 0.7 --iterations "${WALK_FINETUNE_ITERS:-800}"
+  eval_skill "$specs/walk.ron" --from turn_left,turn_right
+  if [ "${TURN_FINETUNE2_ITERS:-400}" != 0 ]; then
+    for s in turn_left turn_right; do
+      finetune "$specs/$s.ron" --from walk --iterations "${TURN_FINETUNE2_ITERS:-400}"
+      eval_skill "$specs/$s.ron" --from walk
+    done
+    # Walk from the turns' new end poses (its pool, from the clip start, stays as it is).
+    eval_skill "$specs/walk.ron" --from turn_left,turn_right --no-pool
+  fi
 fi
-"$bin" skill finetune "$specs/sit.ron" --from turn_left,turn_right --library "$lib" --fraction 0.7 --iterations "${SIT_FINETUNE_ITERS:-600}" "${extra[@]}"
+finetune "$specs/sit.ron" --from turn_left,turn_right --fraction 0.7 --iterations "${SIT_FINETUNE_ITERS:-600}"
 if [ "${SIT_FINETUNE2_ITERS:-1000}" != 0 ]; then
-  "$bin" skill finetune "$specs/sit.ron" --from turn_left,turn_right --library "$lib" --fraction 0.6 --iterations "${SIT_FINETUNE2_ITERS:-1000}" "${extra[@]}"
+  finetune "$specs/sit.ron" --from turn_left,turn_right --fraction 0.6 --iterations "${SIT_FINETUNE2_ITERS:-1000}"
 fi
-"$bin" skill eval "$specs/sit.ron" --library "$lib" --trials "$trials" --from turn_left,turn_right
+eval_skill "$specs/sit.ron" --from turn_left,turn_right
+mv "$evals" "$lib/evals.md"
+echo "library written to $lib (evaluations in $lib/evals.md)"

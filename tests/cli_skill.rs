@@ -41,6 +41,8 @@ fn train_eval_and_finetune_a_chain() {
     ));
     // A 2-iteration walk rarely survives to its time limit, so its pool may be empty; the
     // fine-tune then starts from reference states only, which the command must still accept.
+    let stage_one = repertoire_skill::library::load(Path::new(lib), "turn_left").expect("stage one loads").manifest;
+    assert!(stage_one.lineage.is_empty(), "a skill trained from scratch has no earlier stages");
     let run = dir.join("run-turn-ft");
     let text = ok(&repertoire(
         &[
@@ -53,6 +55,23 @@ fn train_eval_and_finetune_a_chain() {
     assert!(text.contains("| turn_left | 2 |"), "{text}");
     let manifest = std::fs::read_to_string(Path::new(lib).join("turn_left/manifest.ron")).unwrap();
     assert!(manifest.contains("Pools") && manifest.contains("finetune"), "the manifest records the fine-tune");
+    // Its lineage is the stage it started from: stage one's command and policy.
+    let tuned = repertoire_skill::library::load(Path::new(lib), "turn_left").expect("fine-tune loads").manifest;
+    assert_eq!(tuned.lineage, vec![stage_one.stage()]);
+    assert!(tuned.lineage[0].command.contains("skill train"), "{:?}", tuned.lineage);
+    assert_ne!(tuned.policy_fnv1a, stage_one.policy_fnv1a);
+    // A second fine-tune appends the first, oldest first.
+    let run = dir.join("run-turn-ft2");
+    ok(&repertoire(
+        &[
+            &["skill", "finetune", turn.to_str().unwrap(), "--from", "walk", "--library", lib],
+            &["--run-dir", run.to_str().unwrap()][..],
+            &tiny[..],
+        ]
+        .concat(),
+    ));
+    let twice = repertoire_skill::library::load(Path::new(lib), "turn_left").expect("second fine-tune loads").manifest;
+    assert_eq!(twice.lineage, vec![stage_one.stage(), tuned.stage()]);
 
     // Fine-tuning from a skill that was never evaluated names what is missing.
     let out = repertoire(&["skill", "finetune", turn.to_str().unwrap(), "--from", "sit", "--library", lib]);

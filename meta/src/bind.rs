@@ -109,3 +109,22 @@ impl SkillProps {
         }
     }
 }
+
+/// The prop names a skill's observation reads (its `PropPose` and `PropVelocity` features), in
+/// feature order.
+pub fn observed_props(features: &[Feature]) -> impl Iterator<Item = &str> {
+    features.iter().filter_map(|f| match f {
+        Feature::PropPose(p) | Feature::PropVelocity(p) => Some(p.as_str()),
+        _ => None,
+    })
+}
+
+/// The keys of `bind` that none of `observed` (the prop names the graph's skills observe)
+/// reads, in key order: a typo, or a binding for a skill the graph leaves out. Such an entry
+/// does nothing, so the meta environment warns about it.
+pub fn unused_bindings<'a>(
+    bind: &'a std::collections::BTreeMap<String, PropBinding>,
+    observed: &[&str],
+) -> Vec<&'a str> {
+    bind.keys().map(String::as_str).filter(|k| !observed.contains(k)).collect()
+}

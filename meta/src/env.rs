@@ -177,6 +177,7 @@ impl MetaSetup {
         }
         let mut skills = Vec::new();
         let mut start_pool = None;
+        let mut observed: Vec<String> = Vec::new();
         for (k, name) in graph.names().into_iter().enumerate() {
             let pool_path = library::skill_dir(library, name).join("end_poses.ron");
             if start_pool.is_none() && graph.is_allowed(None, k) && pool_path.exists() {
@@ -187,6 +188,7 @@ impl MetaSetup {
             }
             let s: LibrarySkill = library::load(library, name)?;
             let (layout, props) = SkillProps::resolve(&model, &task, name, &s.manifest.observation.features)?;
+            observed.extend(crate::bind::observed_props(&s.manifest.observation.features).map(String::from));
             s.check_fits_layout(&model, &layout)?;
             let uses_target = matches!(s.manifest.spec.goal, Goal::Target { .. });
             skills.push(MetaSkill {
@@ -201,6 +203,14 @@ impl MetaSetup {
                 props,
                 policy: s.policy,
             });
+        }
+        let observed: Vec<&str> = observed.iter().map(String::as_str).collect();
+        for key in crate::bind::unused_bindings(&sc.bind, &observed) {
+            tracing::warn!(
+                scenario = %model.scenario.path.display(),
+                "`bind` entry `{key}` is read by none of the graph's skills (they observe: {}); it does nothing",
+                if observed.is_empty() { "no props".to_string() } else { observed.join(", ") }
+            );
         }
         let mut features = Feature::proprioception();
         features.extend(task.features(&model));

@@ -170,3 +170,20 @@ fn a_skill_observing_a_prop_the_scenario_neither_has_nor_binds_is_refused() {
     env.reset(&mut EnvRng::seed_from_u64(1), &mut obs);
     assert_eq!(env.bound_props(skill(&s, "lift"))[1], b);
 }
+
+#[test]
+fn bind_entries_no_skill_reads_are_found() {
+    // The shipped warehouse's one binding is read by lift and put_down; a misspelt key (the
+    // skills observe "pedestal") is read by none, so it does nothing and is reported.
+    let s = setup(warehouse_with("warehouse.ron", |t| t));
+    let lift = library::load(&root().join("skills/library"), "lift").expect("lift loads");
+    let observed: Vec<&str> = repertoire_meta::bind::observed_props(&lift.manifest.observation.features).collect();
+    assert!(observed.contains(&"pedestal"), "{observed:?}");
+    let bind = &s.model.scenario.scenario.bind;
+    assert!(repertoire_meta::bind::unused_bindings(bind, &observed).is_empty());
+    let typo = warehouse_with("typo.ron", |t| {
+        t.replace("bind: {\"pedestal\": Focal}", "bind: {\"pedestal\": Focal, \"pedestral\": Focal}")
+    });
+    let bind = &typo.scenario.scenario.bind;
+    assert_eq!(repertoire_meta::bind::unused_bindings(bind, &observed), vec!["pedestral"]);
+}

@@ -154,6 +154,18 @@ impl Clip {
         Ok(c)
     }
 
+    /// The clip with its first frame held for `frames` more frames before it plays (a lead-in:
+    /// time for a character arriving in motion to settle before the clip moves on). The held
+    /// frames repeat the first frame's qpos, so their velocities are zero.
+    pub fn with_lead(&self, frames: usize) -> Clip {
+        let mut q = Vec::with_capacity(self.qpos.len() + frames * self.nq);
+        for _ in 0..frames {
+            q.extend_from_slice(&self.qpos[..self.nq]);
+        }
+        q.extend_from_slice(&self.qpos);
+        self.with_frames(q)
+    }
+
     /// The clip played backwards (reversing twice gives the clip back exactly).
     pub fn reversed(&self) -> Clip {
         let mut q = Vec::with_capacity(self.qpos.len());

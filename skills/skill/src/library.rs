@@ -54,6 +54,21 @@ pub struct ClipRecord {
     pub cycle_joint_vel: Vec<f32>,
 }
 
+/// One earlier training stage of a skill (its stage one, or a fine-tune before the last): what
+/// ran, on which code, and the policy it left, so a manifest tells the whole way its weights
+/// were made and not only the last command.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Stage {
+    /// The command.
+    pub command: String,
+    /// Git commit of the code that ran it.
+    pub git_hash: Option<String>,
+    /// Its training figures.
+    pub training: TrainingFigures,
+    /// FNV-1a of the policy it wrote.
+    pub policy_fnv1a: u64,
+}
+
 /// `manifest.ron` of one skill.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SkillManifest {
@@ -89,6 +104,22 @@ pub struct SkillManifest {
     pub git_hash: Option<String>,
     /// FNV-1a of `policy.safetensors` (checked on load).
     pub policy_fnv1a: u64,
+    /// The stages before this one, oldest first (a fine-tune appends the skill it started
+    /// from); empty for a skill trained from scratch and for manifests older than the record.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub lineage: Vec<Stage>,
+}
+
+impl SkillManifest {
+    /// This manifest's own stage (its last command), for the lineage of a fine-tune of it.
+    pub fn stage(&self) -> Stage {
+        Stage {
+            command: self.command.clone(),
+            git_hash: self.git_hash.clone(),
+            training: self.training.clone(),
+            policy_fnv1a: self.policy_fnv1a,
+        }
+    }
 }
 
 /// A loaded skill: its manifest and acting policy.

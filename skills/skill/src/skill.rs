@@ -84,6 +84,9 @@ impl SkillSetup {
             clip = clip.mirrored(&body)?;
         }
         clip.looping = s.clip.looping;
+        if s.clip.lead_s > 0.0 {
+            clip = clip.with_lead((s.clip.lead_s * clip.fps).round() as usize);
+        }
         hold_joints(&mut clip, &body, &s.clip.pose_deg)
             .map_err(|m| SkillError::Invalid(format!("{}: {m}", spec.path.display())))?;
         let control_hz = f64::from(model.scenario.scenario.rates.control_hz);

@@ -38,6 +38,11 @@ pub struct ClipRef {
     /// seated) instead of replaying the clip from its first frame (a turn). 0: no hold.
     #[serde(default)]
     pub hold_s: f64,
+    /// Hold the clip's first frame this long (s) before it plays: a lead-in that gives a
+    /// character arriving in motion from another skill (a turn's end pose, moving at walking
+    /// speed) time to stop before the clip moves on. Applies to every start; 0: none.
+    #[serde(default)]
+    pub lead_s: f64,
     /// Raise the root by up to this much (m), in proportion to how low the clip sits: fully
     /// at its lowest frame, not at all at its highest. For a sit clip whose actor sat lower
     /// than this body's pelvis can rest on the scene's chair.
@@ -413,6 +418,12 @@ impl SpecFile {
         }
         if spec.clip.looping && spec.clip.hold_s > 0.0 {
             return bad("clip cannot both loop and hold its last frame (`looping` and `hold_s`)".into());
+        }
+        if !(spec.clip.lead_s.is_finite() && (0.0..=10.0).contains(&spec.clip.lead_s)) {
+            return bad(format!("clip lead_s must be between 0 and 10 s, got {}", spec.clip.lead_s));
+        }
+        if spec.clip.looping && spec.clip.lead_s > 0.0 {
+            return bad("clip cannot both loop and lead in with its first frame (`looping` and `lead_s`)".into());
         }
         if let Err(m) = spec.init.check() {
             return bad(m);

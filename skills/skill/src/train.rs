@@ -11,7 +11,7 @@ use repertoire_learn::ppo::{IterationMetrics, Ppo};
 use repertoire_learn::run_dir::{RunDir, git_hash};
 
 use crate::error::{Result, SkillError};
-use crate::library::{self, LIBRARY_FORMAT, SkillManifest, TrainingFigures};
+use crate::library::{self, LIBRARY_FORMAT, SkillManifest, Stage, TrainingFigures};
 use crate::skill::{SkillEnv, SkillSetup};
 
 /// Options of one training run.
@@ -76,7 +76,9 @@ pub struct TrainOutcome {
     pub history: Vec<IterationMetrics>,
 }
 
-fn ppo_for(setup: &SkillSetup, opts: &TrainOptions) -> Result<Ppo<SkillEnv>> {
+/// The PPO state to train from and, for a fine-tune, the lineage the result inherits (the
+/// prior's stages and the prior itself).
+fn ppo_for(setup: &SkillSetup, opts: &TrainOptions) -> Result<(Ppo<SkillEnv>, Vec<Stage>)> {
     let mut cfg = setup.spec.spec.ppo.clone();
     if let Some(n) = opts.envs {
         cfg.num_envs = n;
@@ -88,26 +90,37 @@ fn ppo_for(setup: &SkillSetup, opts: &TrainOptions) -> Result<Ppo<SkillEnv>> {
         cfg.parallel_envs = false;
     }
     cfg.num_iterations = opts.iterations.unwrap_or(setup.spec.spec.iterations).max(1);
-    if let Some(stem) = &opts.resume {
-        return Ok(checkpoint::load(stem, setup.envs(cfg.num_envs))?);
-    }
-    let n = cfg.num_envs;
-    let mut ppo = Ppo::new(cfg, setup.envs(n));
-    if opts.init_from_library {
+    // A fine-tune inherits the lineage of the skill it starts from (also when it resumes from
+    // one of its own checkpoints: the library still holds that skill until the fine-tune ends).
+    let mut lineage = Vec::new();
+    let prior = if opts.init_from_library {
         let name = &setup.spec.spec.name;
         let prior = library::load(&opts.library, name)?;
         prior.check_fits(&setup.model)?;
+        lineage = prior.manifest.lineage.clone();
+        lineage.push(prior.manifest.stage());
+        Some(prior)
+    } else {
+        None
+    };
+    if let Some(stem) = &opts.resume {
+        return Ok((checkpoint::load(stem, setup.envs(cfg.num_envs))?, lineage));
+    }
+    let n = cfg.num_envs;
+    let mut ppo = Ppo::new(cfg, setup.envs(n));
+    if let Some(prior) = prior {
+        let name = &setup.spec.spec.name;
         prior.policy.load_into(&mut ppo).map_err(|m| SkillError::Mismatch {
             path: prior.dir.join("policy.safetensors"),
             message: format!("cannot fine-tune `{name}` from it: {m}"),
         })?;
     }
-    Ok(ppo)
+    Ok((ppo, lineage))
 }
 
 /// Trains (or fine-tunes) the skill of `setup` and writes it to the library.
 pub fn train(setup: &SkillSetup, opts: &TrainOptions) -> Result<TrainOutcome> {
-    let mut ppo = ppo_for(setup, opts)?;
+    let (mut ppo, lineage) = ppo_for(setup, opts)?;
     let total = ppo.cfg.num_iterations;
     let start_iter = ppo.iteration;
     let mut run = RunDir::create(&opts.run_dir, &ppo.cfg)
@@ -195,6 +208,7 @@ pub fn train(setup: &SkillSetup, opts: &TrainOptions) -> Result<TrainOutcome> {
         command: opts.command.clone(),
         git_hash: git_hash(),
         policy_fnv1a: 0,
+        lineage,
     };
     let skill_dir = library::save(&opts.library, &mut manifest, &ActingPolicy::from_ppo(&ppo))?;
     Ok(TrainOutcome { skill_dir, run_dir: run.path().to_path_buf(), figures, history })

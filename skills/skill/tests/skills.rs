@@ -265,6 +265,48 @@ fn the_sit_clip_played_open_loop_from_its_first_frame_sits_on_the_chair_and_hold
 }
 
 #[test]
+fn a_lead_in_holds_the_clips_first_frame_still_before_it_plays() {
+    // `lead_s` prepends the first frame, held still, to the clip: the episode, the manifest's
+    // frame count and the meta-controller's view of the clip grow by it; the rest of the clip,
+    // and the seat under its seated frames, are unchanged.
+    let lib = temp("lead-in");
+    let plain = setup("sit.ron", &lib);
+    let mut spec = SpecFile::load(&specs().join("sit.ron")).unwrap();
+    spec.spec.clip.lead_s = 1.0;
+    let led = SkillSetup::new(spec, &lib).expect("a lead-in builds");
+    let (r0, r1) = (&plain.settings.reference, &led.settings.reference);
+    let lead = 60;
+    assert_eq!(r1.frames(), r0.frames() + lead);
+    assert_eq!(led.max_steps, plain.max_steps + lead as u32);
+    assert_eq!(led.clip_record().frames, r1.frames());
+    assert_ne!(led.clip_record().hash, plain.clip_record().hash, "the clip as used is another clip");
+    for k in 0..=lead {
+        assert_eq!(r1.joints_at(k), r0.joints_at(0), "frame {k} of the lead-in");
+        assert_eq!(r1.root_pos[k], r0.root_pos[0]);
+    }
+    for k in 0..lead - 1 {
+        assert!(r1.joint_vel_at(k).iter().all(|v| v.abs() < 1e-9), "frame {k} of the lead-in moves");
+    }
+    for f in 0..r0.frames() {
+        let (a, b) = (r0.joints_at(f), r1.joints_at(f + lead));
+        assert!(a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-9), "frame {f} moved by the lead-in");
+    }
+    assert_eq!(led.settings.seat, plain.settings.seat, "the seat stays under the seated frames");
+
+    let dir = temp("lead-in-bad");
+    let text = std::fs::read_to_string(specs().join("sit.ron")).unwrap();
+    let bad = text.replace("hold_s: 1.5", "hold_s: 1.5, lead_s: -1.0");
+    assert_ne!(bad, text);
+    let err = SpecFile::parse(&dir.join("s.ron"), &bad).expect_err("negative lead-in").to_string();
+    assert!(err.contains("s.ron") && err.contains("lead_s"), "{err}");
+    let walk = std::fs::read_to_string(specs().join("walk.ron")).unwrap();
+    let bad = walk.replace("looping: true", "looping: true, lead_s: 0.5");
+    assert_ne!(bad, walk);
+    let err = SpecFile::parse(&dir.join("w.ron"), &bad).expect_err("loop and lead-in").to_string();
+    assert!(err.contains("w.ron") && err.contains("lead_s"), "{err}");
+}
+
+#[test]
 fn bad_specs_are_refused_with_the_place() {
     let dir = temp("bad-spec");
     let text = std::fs::read_to_string(specs().join("walk.ron")).unwrap();
