@@ -361,6 +361,11 @@ impl MetaEnv {
         &mut self.world
     }
 
+    /// The skill playing now (None before the first decision).
+    pub fn current(&self) -> Option<usize> {
+        self.current
+    }
+
     /// The task state of the current episode (the judges).
     pub fn task(&self) -> &TaskState {
         &self.task
@@ -527,7 +532,8 @@ impl Env for MetaEnv {
             self.phase = 0;
             self.bind_props(option);
         }
-        if self.current != Some(option) {
+        let switched = self.current != Some(option);
+        if switched {
             self.world.joint_angles(&mut self.entry_q);
             self.world.joint_velocities(&mut self.entry_v);
             self.phase = self.setup.skills[option].entry_frame(&self.entry_q, &self.entry_v);
@@ -535,6 +541,10 @@ impl Env for MetaEnv {
             self.switches += u32::from(self.current.is_some());
             self.current = Some(option);
             self.chosen.push(option);
+        }
+        // A skill that takes a target (walk, stage 2) gets the one of this decision, in the
+        // pelvis' heading frame: the meta-controller steers it every decision.
+        if switched || self.setup.skills[option].uses_target {
             let p = self.world.pelvis_frame().pos;
             let yaw = self.world.heading();
             let (dx, dy) = (f64::from(action[1]), f64::from(action[2]));

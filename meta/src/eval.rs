@@ -18,6 +18,37 @@ use repertoire_scenes::world::PropPlacement;
 
 use crate::env::{MetaEnv, MetaSetup};
 use crate::error::{MetaError, Result};
+use crate::planner::{Planner, PlannerConfig};
+
+/// What chooses the skills in an evaluation.
+#[derive(Clone, Copy)]
+pub enum Controller<'a> {
+    /// A trained meta-controller, acting by its mode.
+    Learned(&'a ActingHybrid),
+    /// The search-based reference over the same skills ([`crate::planner`]).
+    Planner(PlannerConfig),
+}
+
+impl<'a> From<&'a ActingHybrid> for Controller<'a> {
+    fn from(head: &'a ActingHybrid) -> Self {
+        Controller::Learned(head)
+    }
+}
+
+/// One episode's decision maker for a [`Controller`].
+enum Acting {
+    Learned(ActingHybrid),
+    Planner(Box<Planner>),
+}
+
+impl Controller<'_> {
+    fn start(&self, setup: &Arc<MetaSetup>) -> Acting {
+        match self {
+            Controller::Learned(head) => Acting::Learned((*head).clone()),
+            Controller::Planner(cfg) => Acting::Planner(Box::new(Planner::new(Arc::clone(setup), *cfg))),
+        }
+    }
+}
 
 /// One trial's outcome.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -75,9 +106,9 @@ pub struct MetaReport {
 }
 
 /// Runs `trials` trials per zone in `zones` with `controller`, `batch` environments in parallel.
-pub fn evaluate(
+pub fn evaluate<'c>(
     setup: &Arc<MetaSetup>,
-    controller: &ActingHybrid,
+    controller: impl Into<Controller<'c>>,
     zones: &[String],
     trials: usize,
     batch: usize,
@@ -88,6 +119,7 @@ pub fn evaluate(
             return Err(MetaError::Invalid(format!("no spawn zone `{z}` in {}", setup.model.scenario.path.display())));
         }
     }
+    let controller = controller.into();
     let names: Vec<String> = setup.skills.iter().map(|s| s.name.clone()).collect();
     let mut all = Vec::new();
     for (zi, zone) in zones.iter().enumerate() {
@@ -96,7 +128,7 @@ pub fn evaluate(
             .collect::<Vec<_>>()
             .chunks(batch.max(1))
             .map(|chunk| {
-                chunk.par_iter().map(|&i| run_trial(setup, controller, zi, zone, trials, i, seed, false).0).collect()
+                chunk.par_iter().map(|&i| run_trial(setup, &controller, zi, zone, trials, i, seed, false).0).collect()
             })
             .collect();
         all.extend(chunks.into_iter().flatten());
@@ -109,7 +141,7 @@ pub fn evaluate(
 #[allow(clippy::too_many_arguments)]
 fn run_trial(
     setup: &Arc<MetaSetup>,
-    controller: &ActingHybrid,
+    controller: &Controller<'_>,
     zi: usize,
     zone: &str,
     trials: usize,
@@ -122,7 +154,7 @@ fn run_trial(
     if record {
         env.record_episodes(format!("meta-controller, zone {zone}, trial {i} (seed {seed})"));
     }
-    let mut ctl = controller.clone();
+    let mut ctl = controller.start(setup);
     let mut rng = EnvRng::seed_from_u64(seed);
     rng.set_stream((zi * trials + i) as u64 + 1);
     let mut obs = vec![0.0; env.obs_dim()];
@@ -130,8 +162,13 @@ fn run_trial(
     let mut mask = vec![true; names.len()];
     env.reset(&mut rng, &mut obs);
     loop {
-        env.option_mask(&mut mask);
-        ctl.act(&obs, &mask, &mut act);
+        match &mut ctl {
+            Acting::Learned(head) => {
+                env.option_mask(&mut mask);
+                head.act(&obs, &mask, &mut act);
+            }
+            Acting::Planner(planner) => planner.act(&env, &mut act),
+        }
         let out = env.step(&act, &mut obs);
         if out.terminated || out.truncated {
             let trial = trial_of(setup, &env, i, zone, &out.terms, &names);
@@ -158,9 +195,9 @@ pub fn worst_trials(report: &MetaReport, n: usize, per_zone: bool) -> Vec<&Trial
 
 /// Runs `trial` of an evaluation over `zones` (`trials` per zone, `seed`) again, recorded. The
 /// controller acts by its mode, so the rerun is the same trial; an error if it is not.
-pub fn record_trial(
+pub fn record_trial<'c>(
     setup: &Arc<MetaSetup>,
-    controller: &ActingHybrid,
+    controller: impl Into<Controller<'c>>,
     zones: &[String],
     trials: usize,
     seed: u64,
@@ -171,7 +208,7 @@ pub fn record_trial(
     })?;
     // Episodes draw their zone from the setup's list, as in the evaluation (one zone at a time).
     *setup.zones.write().expect("never poisoned") = vec![trial.zone.clone()];
-    let (again, rec) = run_trial(setup, controller, zi, &trial.zone, trials, trial.index, seed, true);
+    let (again, rec) = run_trial(setup, &controller.into(), zi, &trial.zone, trials, trial.index, seed, true);
     if again.min_distance != trial.min_distance || again.success != trial.success {
         return Err(MetaError::Invalid(format!(
             "trial {} of zone `{}` did not replay the same (min distance {} then {})",
@@ -184,9 +221,9 @@ pub fn record_trial(
 /// Records the worst trials of `report` into `dir` as `trial_<zone>_<index>.rec`; returns the
 /// files written.
 #[allow(clippy::too_many_arguments)]
-pub fn save_worst(
+pub fn save_worst<'c>(
     setup: &Arc<MetaSetup>,
-    controller: &ActingHybrid,
+    controller: impl Into<Controller<'c>>,
     report: &MetaReport,
     zones: &[String],
     trials: usize,
@@ -200,6 +237,7 @@ pub fn save_worst(
         return Ok(Vec::new());
     }
     std::fs::create_dir_all(dir).map_err(|e| MetaError::Invalid(format!("{}: cannot create: {e}", dir.display())))?;
+    let controller = controller.into();
     let mut written = Vec::new();
     for t in worst {
         let path = dir.join(format!("trial_{}_{}.rec", t.zone, t.index));

@@ -9,6 +9,7 @@ pub mod eval;
 pub mod graph;
 pub mod judge;
 pub mod latent;
+pub mod planner;
 pub mod task;
 pub mod task_eval;
 pub mod toss;

@@ -748,6 +748,13 @@ impl World {
         (f.pitch(), f.roll())
     }
 
+    /// The root's linear velocity in the world frame.
+    pub fn root_dof_velocity(&self) -> [f64; 3] {
+        let d = self.shared.index.root_dof;
+        let v = &self.data.qvel()[d..d + 3];
+        [v[0], v[1], v[2]]
+    }
+
     /// The root's linear velocity in the heading frame (x forward, y left, z up).
     pub fn root_velocity_heading(&self) -> [f64; 3] {
         let d = self.shared.index.root_dof;

@@ -4,11 +4,12 @@
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use clap::Subcommand;
 use repertoire_learn::ppo::IterationMetrics;
-use repertoire_meta::eval::{evaluate, save_worst};
+use repertoire_meta::eval::{Controller, evaluate, save_worst};
 use repertoire_meta::latent::{self, LatentSetup};
+use repertoire_meta::planner::PlannerConfig;
 use repertoire_meta::task_eval::{StartGrid, evaluate_toss, evaluate_warehouse, save_worst_toss, save_worst_warehouse};
 use repertoire_meta::train::{MetaTrainOptions, default_ppo, load, train};
 use repertoire_meta::{Advance, MetaSetup, SkillGraph, TaskSpec};
@@ -123,6 +124,19 @@ pub enum MetaCommand {
         /// `low_level`).
         #[arg(long)]
         latent: Option<PathBuf>,
+        /// Sitting: evaluate the search-based reference controller instead of a trained one: at
+        /// each decision it simulates skill plans in a copy of the episode and plays out one
+        /// that succeeds (what the skill library allows at the meta rate; default report
+        /// folder runs/planner-<scenario>).
+        #[arg(long)]
+        planner: bool,
+        /// Planner: most decisions one plan is simulated for.
+        #[arg(long, default_value_t = PlannerConfig::default().horizon)]
+        horizon: u32,
+        /// Planner: most extra decisions an option is held before a terminal skill (sit) is
+        /// tried after it.
+        #[arg(long, default_value_t = PlannerConfig::default().repeats)]
+        repeats: u32,
     },
 }
 
@@ -203,7 +217,61 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
             skills,
             worst,
             latent,
+            planner,
+            horizon,
+            repeats,
         } => {
+            if planner {
+                let setup = setup(file.as_ref(), &library, &chain, &skills)?;
+                if latent.is_some() || meta.is_some() {
+                    bail!("--planner chooses the skills itself: it takes neither --meta nor --latent");
+                }
+                if !matches!(setup.task, TaskSpec::Sit { .. }) {
+                    bail!(
+                        "{}: --planner evaluates sitting scenarios only (this one is {})",
+                        setup.model.scenario.path.display(),
+                        setup.task.name()
+                    );
+                }
+                if horizon == 0 {
+                    bail!("--horizon must be at least 1 decision");
+                }
+                let out = out.unwrap_or_else(|| {
+                    PathBuf::from("runs").join(format!("planner-{}", setup.model.scenario.scenario.name))
+                });
+                let zones = if zones.is_empty() {
+                    setup.model.scenario.scenario.spawn.iter().map(|z| z.name.clone()).collect()
+                } else {
+                    zones
+                };
+                let cfg = PlannerConfig { horizon, repeats };
+                let trials = trials.unwrap_or(100);
+                let started = std::time::Instant::now();
+                let report = evaluate(&setup, Controller::Planner(cfg), &zones, trials, batch, seed)?;
+                print!("{}", report.markdown());
+                report.write(&out)?;
+                println!(
+                    "\nplanner (horizon {horizon}, repeats {repeats}): {} trials in {:.1} s; report.md, trials.csv and \
+                     report.json written to {}",
+                    report.trials.len(),
+                    started.elapsed().as_secs_f64(),
+                    out.display()
+                );
+                let recs = save_worst(
+                    &setup,
+                    Controller::Planner(cfg),
+                    &report,
+                    &zones,
+                    trials,
+                    seed,
+                    worst,
+                    false,
+                    &out.join("worst"),
+                )?;
+                super::replay::pages_beside(&recs);
+                worst_recorded(&recs, &out);
+                return Ok(());
+            }
             if let Some((model, dir)) = latent_low_level(file.as_ref(), latent)? {
                 no_skill_options(&chain, &skills)?;
                 let zones = if zones.is_empty() {

@@ -20,6 +20,12 @@ pub enum SkillCommand {
     Train {
         /// The skill spec (e.g. skills/skill/specs/walk.ron).
         spec: PathBuf,
+        /// Start from the library's skill of this name instead of a fresh policy: the skill's
+        /// next training stage (walk stage 2, `walk_stage2.ron`, from the stage-1 walk).
+        /// Observation values the spec adds after the old ones (walk's target) enter with zero
+        /// weight, so training starts from the old behaviour.
+        #[arg(long)]
+        warm_start: bool,
         #[command(flatten)]
         common: TrainArgs,
     },
@@ -126,14 +132,14 @@ pub struct TrainArgs {
 pub fn run(cmd: SkillCommand) -> Result<()> {
     let command = std::env::args().collect::<Vec<_>>().join(" ");
     match cmd {
-        SkillCommand::Train { spec, common } => train_cmd(&spec, None, common, command),
+        SkillCommand::Train { spec, warm_start, common } => train_cmd(&spec, None, warm_start, common, command),
         SkillCommand::Finetune { spec, from, fraction, speed, common } => {
             let speed = match speed.as_deref() {
                 None => (1.0, 1.0),
                 Some(&[lo, hi]) => (lo, hi),
                 Some(v) => bail!("--speed takes two numbers LO,HI, got {v:?}"),
             };
-            train_cmd(&spec, Some((from, fraction, speed)), common, command)
+            train_cmd(&spec, Some((from, fraction, speed)), true, common, command)
         }
         SkillCommand::Play { spec, record, html, library, seed, from, web } => {
             play_cmd(&spec, &record, html.as_deref(), &library, seed, from, web.as_deref())
@@ -147,11 +153,11 @@ pub fn run(cmd: SkillCommand) -> Result<()> {
 fn train_cmd(
     spec_path: &Path,
     finetune: Option<(Vec<String>, f64, (f64, f64))>,
+    init_from_library: bool,
     a: TrainArgs,
     command: String,
 ) -> Result<()> {
     let mut spec = SpecFile::load(spec_path)?;
-    let init_from_library = finetune.is_some();
     if let Some((from, fraction, speed)) = finetune {
         spec.spec.init = Init::Pools { from, fraction, speed };
         spec.spec.init.check().map_err(|m| anyhow::anyhow!("skill finetune --from/--fraction/--speed: {m}"))?;
@@ -248,6 +254,15 @@ fn eval_cmd(
             100.0 * r.falls as f64 / r.trials.max(1) as f64,
             r.normalized_length,
             r.normalized_return
+        );
+    }
+    for r in rows.iter().filter(|r| r.targets_per_trial.is_some()) {
+        let start = if r.start == StartFrom::ClipStart { "the clip start" } else { "the predecessors' end poses" };
+        println!(
+            "{}: {:.2} targets reached per {:.0} s trial from {start}",
+            r.skill,
+            r.targets_per_trial.unwrap_or(0.0),
+            setup.spec.spec.episode_s
         );
     }
     if !no_pool {

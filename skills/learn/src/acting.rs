@@ -96,6 +96,33 @@ impl ActingPolicy {
         Ok(())
     }
 
+    /// This policy taking `inputs` observation values, the new ones appended after its own:
+    /// they enter the first layer with zero weights and identity statistics (mean 0,
+    /// variance 1), so the widened policy acts exactly as this one until training gives them
+    /// weight (a skill's next training stage observing more, such as walk's target). `Err`
+    /// when `inputs` is fewer than it takes now.
+    pub fn widened(&self, inputs: usize) -> Result<ActingPolicy, String> {
+        let have = self.obs_dim();
+        if inputs < have {
+            return Err(format!("cannot narrow a policy from {have} to {inputs} inputs"));
+        }
+        let mut layers = self.mean.layers().to_vec();
+        let (_, outputs, w, _) = &mut layers[0];
+        // Row-major [in × out]: the new inputs are new rows at the end.
+        w.resize(inputs * *outputs, 0.0);
+        layers[0].0 = inputs;
+        let mut obs_rms = self.obs_rms.clone();
+        obs_rms.mean.resize(inputs, 0.0);
+        obs_rms.var.resize(inputs, 1.0);
+        Ok(ActingPolicy {
+            mean: MlpInference::from_layers(layers)?,
+            log_std: self.log_std.clone(),
+            obs_rms,
+            normalize_obs: self.normalize_obs,
+            scratch: Vec::new(),
+        })
+    }
+
     /// Observation width.
     pub fn obs_dim(&self) -> usize {
         self.mean.inputs()

@@ -181,3 +181,36 @@ fn sharded_gradients_match_the_whole_minibatch() {
     assert!(moved > 1e-4, "the update moved the weights ({moved})");
     assert!(max_diff < 1e-5 * moved.max(1.0), "sharded and whole updates differ by {max_diff}");
 }
+
+#[test]
+fn a_widened_policy_acts_as_before_whatever_its_new_inputs_say() {
+    // A skill's next training stage may observe more (walk's target): the old policy widened
+    // with zero weights for the appended inputs must act exactly as it did, and load into a
+    // learner of the wider observation.
+    use repertoire_learn::acting::ActingPolicy;
+    let mut ppo = Ppo::new(common::tiny_config(2), common::cartpoles(2));
+    ppo.iterate();
+    let mut old = ActingPolicy::from_ppo(&ppo);
+    assert!(old.obs_rms.mean.iter().any(|m| *m != 0.0), "training moved the statistics");
+    let mut wide = old.widened(7).expect("widen 4 → 7");
+    assert_eq!((wide.obs_dim(), wide.act_dim()), (7, old.act_dim()));
+    let mut a = vec![0.0; old.act_dim()];
+    let mut b = vec![0.0; old.act_dim()];
+    for (k, extra) in [[0.0, 0.0, 0.0], [5.0, -3.0, 100.0], [-1e3, 0.5, 7.0]].iter().enumerate() {
+        let obs = [0.1 * k as f32, -0.2, 0.05, 0.3];
+        old.act(&obs, &mut a);
+        let mut wider = obs.to_vec();
+        wider.extend_from_slice(extra);
+        wide.act(&wider, &mut b);
+        assert_eq!(a, b, "extra inputs {extra:?} changed the action");
+    }
+    assert_ne!(a, vec![0.0; a.len()], "a trained policy acts");
+    assert!(old.widened(3).expect_err("narrowing").contains("narrow"));
+
+    let mut wider_ppo = Ppo::new(common::tiny_config(2), vec![common::Drift::new(7), common::Drift::new(7)]);
+    let err = old.load_into(&mut wider_ppo).expect_err("4 inputs into a 7-input learner");
+    assert!(err.contains("layer 0") || err.contains("width"), "{err}");
+    // Both envs take one action: only the observation width differs.
+    assert_eq!(common::Drift::new(7).act_dim(), old.act_dim());
+    wide.load_into(&mut wider_ppo).expect("the widened policy fits");
+}

@@ -50,6 +50,9 @@ pub struct EvalReport {
     pub normalized_return: f64,
     /// Mean undiscounted return.
     pub mean_return: f64,
+    /// Walk stage 2 (`Goal::Target` with an arrival radius): targets reached per trial.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub targets_per_trial: Option<f64>,
 }
 
 /// Runs `trials` episodes of `skill` in `setup`'s environment, `batch` at a time in parallel,
@@ -128,6 +131,10 @@ pub fn evaluate(
         normalized_length: 0.0,
         normalized_return: 0.0,
         mean_return: 0.0,
+        targets_per_trial: match settings.goal {
+            Goal::Target { reach_m, .. } if reach_m > 0.0 => Some(0.0),
+            _ => None,
+        },
     };
     let mut pool = Vec::new();
     // A cycle (walk) has no end pose: every trial ends at the same phase of it. Its pool takes
@@ -199,6 +206,9 @@ pub fn evaluate(
             report.normalized_length += f64::from(len) / f64::from(max_len[i]);
             report.normalized_return += returns[i] / (max_reward_per_step * f64::from(max_len[i])).max(1e-9);
             report.mean_return += returns[i];
+            if let Some(t) = report.targets_per_trial.as_mut() {
+                *t += f64::from(env.task().reached);
+            }
             if success {
                 let state = captured[i].take().unwrap_or_else(|| {
                     let mut state = PoolState::capture(env.world());
@@ -223,6 +233,9 @@ pub fn evaluate(
     report.normalized_length /= n;
     report.normalized_return /= n;
     report.mean_return /= n;
+    if let Some(t) = report.targets_per_trial.as_mut() {
+        *t /= n;
+    }
     Ok((report, pool))
 }
 

@@ -5,7 +5,7 @@
 use std::f64::consts::TAU;
 use std::sync::Arc;
 
-use rand::Rng;
+use rand::{Rng, SeedableRng};
 use repertoire_humanoid::{Task, TaskStep};
 use repertoire_learn::env::{EnvRng, MAX_TERMS};
 use repertoire_scenes::World;
@@ -84,6 +84,10 @@ pub struct ImitationTask {
     last_distance: f64,
     /// This episode's chair offset from the clip's seat (world x, y, yaw).
     seat_offset: [f64; 3],
+    /// Draws the next target after an arrival (`Goal::Target::reach_m`), seeded at reset.
+    target_rng: EnvRng,
+    /// Targets reached this episode.
+    pub reached: u32,
     joints: Vec<f64>,
 }
 
@@ -104,8 +108,21 @@ impl ImitationTask {
             target: [0.0; 2],
             last_distance: 0.0,
             seat_offset: [0.0; 3],
+            target_rng: EnvRng::seed_from_u64(0),
+            reached: 0,
             joints: vec![0.0; dof],
         }
+    }
+
+    /// The walking target (world xy) of a `Goal::Target` skill.
+    pub fn target(&self) -> [f64; 2] {
+        self.target
+    }
+
+    /// Moves the walking target (world xy), for tools and tests that set up a situation by hand.
+    pub fn set_target(&mut self, target: [f64; 2], world: &World) {
+        self.target = target;
+        self.last_distance = self.goal_distance(world);
     }
 
     /// The shared settings.
@@ -417,6 +434,27 @@ impl ImitationTask {
                     + wrap_angle(roll - r.pitch_roll[f][1]).powi(2);
                 similarity(*scale, e)
             }
+            Goal::Target { reach_m, distance_m, azimuth_deg, .. }
+                if *reach_m > 0.0 && self.goal_distance(world) < *reach_m =>
+            {
+                // Arrived: a new target ahead, from the same ranges around the current heading.
+                let p = world.pelvis_frame().pos;
+                self.target =
+                    draw_target(&mut self.target_rng, [p[0], p[1]], world.heading(), *distance_m, *azimuth_deg);
+                self.last_distance = self.goal_distance(world);
+                self.reached += 1;
+                1.0
+            }
+            Goal::Target { speed_scale, .. } if *speed_scale > 0.0 => {
+                let p = world.pelvis_frame().pos;
+                let (dx, dy) = (self.target[0] - p[0], self.target[1] - p[1]);
+                let norm = (dx * dx + dy * dy).sqrt().max(1e-9);
+                let d = world.root_dof_velocity();
+                let toward = (d[0] * dx + d[1] * dy) / norm;
+                let v_ref = (r.velocity[f][0].powi(2) + r.velocity[f][1].powi(2)).sqrt();
+                self.last_distance = norm;
+                similarity(*speed_scale, (v_ref - toward).max(0.0).powi(2))
+            }
             Goal::Target { .. } | Goal::Seat { .. } => {
                 let d = self.goal_distance(world);
                 let speed = (d - self.last_distance) / r.dt;
@@ -449,6 +487,13 @@ impl ImitationTask {
         };
         TaskStep { reward, terminated: fell, truncated: false, terms }
     }
+}
+
+/// A target `distance_m` away from `from` at an azimuth within ±`azimuth_deg` of `heading`.
+fn draw_target(rng: &mut EnvRng, from: [f64; 2], heading: f64, distance_m: (f64, f64), azimuth_deg: f64) -> [f64; 2] {
+    let d = rng.random_range(distance_m.0..=distance_m.1.max(distance_m.0));
+    let a = heading + rng.random_range(-azimuth_deg..=azimuth_deg.max(-azimuth_deg)).to_radians();
+    [from[0] + d * a.cos(), from[1] + d * a.sin()]
 }
 
 /// `exp(−scale · e)`.
@@ -555,10 +600,12 @@ impl Task for ImitationTask {
         self.held = 0;
         self.start_frame = self.phase;
         self.start_heading = world.heading();
-        if let Goal::Target { distance_m, azimuth_deg, .. } = settings.goal {
-            let d = rng.random_range(distance_m.0..=distance_m.1.max(distance_m.0));
-            let a = heading + rng.random_range(-azimuth_deg..=azimuth_deg.max(-azimuth_deg)).to_radians();
-            self.target = [x + d * a.cos(), y + d * a.sin()];
+        self.reached = 0;
+        if let Goal::Target { distance_m, azimuth_deg, reach_m, .. } = settings.goal {
+            self.target = draw_target(rng, [x, y], heading, distance_m, azimuth_deg);
+            if reach_m > 0.0 {
+                self.target_rng = EnvRng::seed_from_u64(rng.random());
+            }
         }
         self.last_distance = self.goal_distance(world);
     }

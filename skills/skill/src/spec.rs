@@ -120,6 +120,18 @@ pub enum Goal {
         distance_m: (f64, f64),
         /// Azimuth range (degrees either side of the start heading).
         azimuth_deg: f64,
+        /// Arrival radius (m): within it the target counts as reached (the goal term pays 1 on
+        /// that step) and a new one is drawn from the same ranges around the current heading,
+        /// so an episode walks to target after target. 0: one target per episode.
+        #[serde(default)]
+        reach_m: f64,
+        /// > 0: the goal term is DeepMimic's target-heading reward `exp(−speed_scale ·
+        /// max(0, v_ref − v·u)²)`, with `u` the unit vector to the target, `v` the root's
+        /// velocity and `v_ref` the clip's root speed at that frame (walk towards the target
+        /// at the clip's pace), instead of the sigmoid on the distance's rate, which pays fully
+        /// for any approach faster than about 0.3 m/s and so hardly for facing the target.
+        #[serde(default)]
+        speed_scale: f64,
     },
     /// Sit: the chair `prop` is placed under the clip's seated pelvis; reward
     /// `weight / (1 + exp(10 · V))` with `V` the rate of change of the pelvis–seat-centre

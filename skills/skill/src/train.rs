@@ -110,7 +110,19 @@ fn ppo_for(setup: &SkillSetup, opts: &TrainOptions) -> Result<(Ppo<SkillEnv>, Ve
     let mut ppo = Ppo::new(cfg, setup.envs(n));
     if let Some(prior) = prior {
         let name = &setup.spec.spec.name;
-        prior.policy.load_into(&mut ppo).map_err(|m| SkillError::Mismatch {
+        // A next training stage may observe more than the last (walk's target after its stage
+        // one): the old policy, widened with zero weights for the new values, starts it.
+        let wanted = ppo.obs_rms.dim();
+        let policy = if prior.policy.obs_dim() < wanted {
+            tracing::info!(skill = %name, from = prior.policy.obs_dim(), to = wanted, "widening the policy's input");
+            prior.policy.widened(wanted).map_err(|m| SkillError::Mismatch {
+                path: prior.dir.join("policy.safetensors"),
+                message: format!("cannot continue `{name}` from it: {m}"),
+            })?
+        } else {
+            prior.policy.clone()
+        };
+        policy.load_into(&mut ppo).map_err(|m| SkillError::Mismatch {
             path: prior.dir.join("policy.safetensors"),
             message: format!("cannot fine-tune `{name}` from it: {m}"),
         })?;

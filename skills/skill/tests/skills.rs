@@ -460,3 +460,71 @@ fn a_cycle_is_picked_up_at_the_frame_nearest_the_arriving_pose_and_its_pool_cove
     let phases: std::collections::BTreeSet<usize> = ends.iter().map(|e| e.phase).collect();
     assert!(phases.len() >= 4, "pool phases {phases:?} do not spread over the cycle");
 }
+
+#[test]
+fn walk_stage_two_reaches_a_target_and_draws_the_next_one_ahead() {
+    use repertoire_humanoid::Task;
+    let s = setup("walk_stage2.ron", &temp("walk-target"));
+    let Goal::Target { distance_m, azimuth_deg, reach_m, .. } = s.spec.spec.goal.clone() else {
+        panic!("walk_stage2.ron walks to targets")
+    };
+    assert!(reach_m > 0.0);
+    let mut env = s.env();
+    let mut task = ImitationTask::new(s.settings.clone());
+    let mut rng = EnvRng::seed_from_u64(3);
+    task.reset(env.world_mut(), &mut rng);
+    // The first target is drawn in range of the start.
+    let p = env.world().pelvis_frame().pos;
+    let dist = |t: [f64; 2], p: [f64; 3]| ((t[0] - p[0]).powi(2) + (t[1] - p[1]).powi(2)).sqrt();
+    let d0 = dist(task.target(), p);
+    assert!(d0 >= distance_m.0 - 0.05 && d0 <= distance_m.1 + 0.05, "first target {d0} m away");
+    // The policy observes it: [sin ψ, cos ψ, distance] after the phase.
+    let mut obs = vec![0.0f32; 6];
+    task.observe_extra(env.world(), &mut obs);
+    assert!((f64::from(obs[5]) - d0).abs() < 1e-3, "{obs:?}");
+    assert!((obs[3].powi(2) + obs[4].powi(2) - 1.0).abs() < 1e-4);
+
+    // Standing on the target: reached (goal term 1), and a new one is drawn ahead, in range.
+    let heading = 0.4;
+    let f = 10;
+    task.place_at_frame(env.world_mut(), f, 2.0, -1.0, heading);
+    let p = env.world().pelvis_frame().pos;
+    task.set_target([p[0] + 0.1, p[1]], env.world());
+    let out = task.score(env.world(), f);
+    assert_eq!(out.terms[4], 1.0, "arrival pays the goal's maximum");
+    assert_eq!(task.reached, 1);
+    let next = task.target();
+    let d = dist(next, p);
+    assert!(d >= distance_m.0 - 1e-9 && d <= distance_m.1 + 1e-9, "next target {d} m away");
+    let bearing = (next[1] - p[1]).atan2(next[0] - p[0]);
+    let off = repertoire_scenes::math::wrap_angle(bearing - env.world().heading()).abs();
+    assert!(off <= azimuth_deg.to_radians() + 1e-9, "next target {:.1}° off the heading", off.to_degrees());
+    // Not there yet: no second arrival.
+    task.score(env.world(), f);
+    assert_eq!(task.reached, 1);
+    // The target-heading reward (`speed_scale`): walking at the clip's pace (the clip frame's
+    // velocities) straight at the target pays nearly all of it, walking past it sideways or
+    // away from it almost nothing.
+    let h = env.world().heading();
+    let at = |a: f64| [p[0] + 3.0 * (h + a).cos(), p[1] + 3.0 * (h + a).sin()];
+    task.set_target(at(0.0), env.world());
+    let ahead = task.score(env.world(), f).terms[4];
+    task.set_target(at(std::f64::consts::FRAC_PI_2), env.world());
+    let side = task.score(env.world(), f).terms[4];
+    task.set_target(at(std::f64::consts::PI), env.world());
+    let behind = task.score(env.world(), f).terms[4];
+    assert!(ahead > 0.8 && side < 0.2 && behind < side, "ahead {ahead}, side {side}, behind {behind}");
+
+    // Without `reach_m` (one target per episode), standing on it is no arrival.
+    let mut spec = SpecFile::load(&specs().join("walk_stage2.ron")).unwrap();
+    if let Goal::Target { reach_m, .. } = &mut spec.spec.goal {
+        *reach_m = 0.0;
+    }
+    let once = SkillSetup::new(spec, &temp("walk-target-once")).unwrap();
+    let mut task = ImitationTask::new(once.settings.clone());
+    task.reset(env.world_mut(), &mut rng);
+    task.place_at_frame(env.world_mut(), f, 2.0, -1.0, heading);
+    task.set_target([p[0] + 0.1, p[1]], env.world());
+    task.score(env.world(), f);
+    assert_eq!(task.reached, 0);
+}
