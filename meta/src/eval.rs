@@ -37,14 +37,14 @@ impl<'a> From<&'a ActingHybrid> for Controller<'a> {
 
 /// One episode's decision maker for a [`Controller`].
 enum Acting {
-    Learned(ActingHybrid),
+    Learned(Box<ActingHybrid>),
     Planner(Box<Planner>),
 }
 
 impl Controller<'_> {
     fn start(&self, setup: &Arc<MetaSetup>) -> Acting {
         match self {
-            Controller::Learned(head) => Acting::Learned((*head).clone()),
+            Controller::Learned(head) => Acting::Learned(Box::new((*head).clone())),
             Controller::Planner(cfg) => Acting::Planner(Box::new(Planner::new(Arc::clone(setup), *cfg))),
         }
     }

@@ -293,3 +293,42 @@ fn the_planner_evaluates_reproducibly_and_only_plays_what_the_graph_allows() {
         assert!(!t.skills.is_empty());
     }
 }
+
+#[test]
+fn the_planner_distilled_is_a_controller_that_loads_and_evaluates() {
+    use repertoire_meta::distill::{DistillOptions, distill};
+    use repertoire_meta::planner::PlannerConfig;
+    let s = setup(None);
+    let out = std::env::temp_dir().join(format!("repertoire-distill-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&out);
+    let opts = DistillOptions {
+        out: out.clone(),
+        episodes: 2,
+        zones: vec!["front".into()],
+        planner: PlannerConfig { horizon: 3, repeats: 0 },
+        successful_only: false,
+        epochs: 3,
+        batch: 8,
+        ppo: PpoConfig { num_envs: 2, ..repertoire_meta::train::default_ppo() },
+        seed: 4,
+        command: "test".into(),
+        then_train: None,
+    };
+    let (manifest, f) = distill(Arc::clone(&s), &opts).expect("distil");
+    assert_eq!(f.episodes, 2);
+    assert!(f.demonstrations >= 2, "every episode makes at least one decision");
+    assert_eq!(manifest.samples, f.demonstrations as u64);
+    assert_eq!(manifest.iterations, 0, "the fit alone");
+    assert_eq!(f.losses.len(), 3);
+    assert!(f.losses.iter().all(|l| l.is_finite() && *l >= 0.0), "{:?}", f.losses);
+    let (loaded, head) = load(&out, &s).expect("the distilled controller loads");
+    assert_eq!(loaded, manifest);
+    let report = evaluate(&s, &head, &["front".to_string()], 2, 2, 1).expect("evaluates");
+    assert_eq!(report.trials.len(), 2);
+    // Only successful episodes, when none succeeded, leave nothing to fit: a clear error.
+    if f.successes == 0 {
+        let err =
+            distill(Arc::clone(&s), &DistillOptions { successful_only: true, ..opts }).expect_err("nothing to fit");
+        assert!(err.to_string().contains("no demonstrations"), "{err}");
+    }
+}

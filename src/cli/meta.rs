@@ -7,6 +7,7 @@ use std::sync::Arc;
 use anyhow::{Context, Result, bail};
 use clap::Subcommand;
 use repertoire_learn::ppo::IterationMetrics;
+use repertoire_meta::distill::{DistillOptions, distill};
 use repertoire_meta::eval::{Controller, evaluate, save_worst};
 use repertoire_meta::latent::{self, LatentSetup};
 use repertoire_meta::planner::PlannerConfig;
@@ -70,6 +71,54 @@ pub enum MetaCommand {
         /// Latent low level: control ticks each z is held.
         #[arg(long, default_value_t = 1)]
         hold: usize,
+    },
+    /// Distil the search-based planner (`meta eval --planner`) into a meta-controller: the
+    /// planner plays seeded episodes from each zone and a fresh hybrid policy is fitted to its
+    /// decisions by behaviour cloning (sitting scenarios). The result is an ordinary controller
+    /// that acts from its observation alone: evaluate it with `meta eval --meta OUT`.
+    Distill {
+        /// Scenario RON file (default: the built-in scenes/sit.ron).
+        file: Option<PathBuf>,
+        /// Skill library.
+        #[arg(long, default_value = DEFAULT_LIBRARY)]
+        library: PathBuf,
+        /// Where the controller goes (default: runs/meta-distill-<scenario>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Planner episodes per zone.
+        #[arg(long, default_value_t = 200)]
+        episodes: usize,
+        /// Zones (default: all of the scenario's).
+        #[arg(long, value_delimiter = ',')]
+        zones: Vec<String>,
+        /// Planner: most decisions one plan is simulated for.
+        #[arg(long, default_value_t = PlannerConfig::default().horizon)]
+        horizon: u32,
+        /// Planner: most extra decisions an option is held before sit is tried after it.
+        #[arg(long, default_value_t = PlannerConfig::default().repeats)]
+        repeats: u32,
+        /// Fit only the decisions of the planner's successful episodes.
+        #[arg(long)]
+        successful_only: bool,
+        /// Passes over the demonstrations.
+        #[arg(long, default_value_t = 100)]
+        epochs: usize,
+        /// Rows per gradient step.
+        #[arg(long, default_value_t = 256)]
+        batch: usize,
+        /// Seed of the planner's episodes and of the fit.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Then this many PPO iterations from the fitted policy (as `meta train`, with the
+        /// zone curriculum unless --no-curriculum); 0: the fit alone.
+        #[arg(long, default_value_t = 0)]
+        iterations: usize,
+        /// Run directory of those iterations (default: runs/meta-distill-<time>-s<seed>).
+        #[arg(long)]
+        run_dir: Option<PathBuf>,
+        /// Open every zone from the start in those iterations.
+        #[arg(long)]
+        no_curriculum: bool,
     },
     /// Evaluate a trained meta-controller. Sitting: success and minimum distance per zone,
     /// transition matrices. Warehouse: phases completed per episode by start phase and a pick-up
@@ -199,6 +248,86 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
                 &manifest.advances,
             );
             println!("meta-controller written to {}; run in {}", out.display(), run_dir.display());
+            Ok(())
+        }
+        MetaCommand::Distill {
+            file,
+            library,
+            out,
+            episodes,
+            zones,
+            horizon,
+            repeats,
+            successful_only,
+            epochs,
+            batch,
+            seed,
+            iterations,
+            run_dir,
+            no_curriculum,
+        } => {
+            let setup = setup(file.as_ref(), &library, &[], &[])?;
+            if !matches!(setup.task, TaskSpec::Sit { .. }) {
+                bail!(
+                    "{}: the planner, and so `meta distill`, handles sitting scenarios only (this one is {})",
+                    setup.model.scenario.path.display(),
+                    setup.task.name()
+                );
+            }
+            if horizon == 0 || episodes == 0 || epochs == 0 {
+                bail!("--horizon, --episodes and --epochs must each be at least 1");
+            }
+            let out = out.unwrap_or_else(|| {
+                PathBuf::from("runs").join(format!("meta-distill-{}", setup.model.scenario.scenario.name))
+            });
+            let zones = if zones.is_empty() {
+                setup.model.scenario.scenario.spawn.iter().map(|z| z.name.clone()).collect()
+            } else {
+                zones
+            };
+            let opts = DistillOptions {
+                out: out.clone(),
+                episodes,
+                zones,
+                planner: PlannerConfig { horizon, repeats },
+                successful_only,
+                epochs,
+                batch,
+                ppo: repertoire_learn::ppo::PpoConfig { seed, ..default_ppo() },
+                seed,
+                then_train: (iterations > 0).then(|| {
+                    let secs =
+                        std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
+                    MetaTrainOptions {
+                        out: out.clone(),
+                        run_dir: run_dir.unwrap_or_else(|| PathBuf::from(format!("runs/meta-distill-{secs}-s{seed}"))),
+                        ppo: repertoire_learn::ppo::PpoConfig { num_iterations: iterations, seed, ..default_ppo() },
+                        curriculum: !no_curriculum,
+                        command: command.clone(),
+                    }
+                }),
+                command,
+            };
+            let (_, f) = distill(setup, &opts)?;
+            println!(
+                "| planner episodes | successful | decisions fitted | planning (min) | fitting (min) | NLL first → last epoch |"
+            );
+            println!("|---:|---:|---:|---:|---:|---|");
+            println!(
+                "| {} | {} | {} | {:.1} | {:.1} | {:.3} → {:.3} |",
+                f.episodes,
+                f.successes,
+                f.demonstrations,
+                f.planning_s / 60.0,
+                f.fitting_s / 60.0,
+                f.losses.first().copied().unwrap_or(f32::NAN),
+                f.losses.last().copied().unwrap_or(f32::NAN)
+            );
+            println!(
+                "meta-controller written to {} (evaluate: repertoire meta eval --meta {})",
+                out.display(),
+                out.display()
+            );
             Ok(())
         }
         MetaCommand::Eval {

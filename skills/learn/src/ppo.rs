@@ -391,6 +391,74 @@ impl<E: Env> Ppo<E> {
     }
 
     /// `K` epochs of minibatch updates of the clipped surrogate, value loss and entropy bonus.
+    /// Fits the hybrid policy to demonstrations (behaviour cloning, a supervised start before
+    /// or instead of PPO): maximises `log π(option, continuous | s)` of `actions` (`[N × ad]`,
+    /// the option then the continuous part, which counts only for options that use it) under
+    /// `masks` (`[N × K]`) for raw observations `obs` (`[N × od]`), `epochs` passes in shuffled
+    /// minibatches of `batch` rows with the learner's Adam and gradient clipping. The
+    /// observation statistics are first updated with the demonstrations (when observations are
+    /// normalised), so the learner acts on them as the fit saw them. The value network is left
+    /// as it is. Returns the mean negative log-likelihood of each epoch; `Err` for a learner
+    /// without hybrid actions or demonstrations of the wrong widths.
+    pub fn behaviour_clone(
+        &mut self,
+        obs: &[f32],
+        actions: &[f32],
+        masks: &[bool],
+        epochs: usize,
+        batch: usize,
+    ) -> Result<Vec<f32>, String> {
+        let Some(k) = self.agent.hybrid.as_ref().map(|h| h.uses_continuous.len()) else {
+            return Err("behaviour cloning fits hybrid policies only".into());
+        };
+        let (od, ad) = (self.obs_rms.dim(), self.envs.act_dim());
+        let n = obs.len() / od.max(1);
+        if n == 0 || obs.len() != n * od || actions.len() != n * ad || masks.len() != n * k {
+            return Err(format!(
+                "demonstrations of {} observation values, {} action values and {} mask entries do not make rows of {od}, {ad} and {k}",
+                obs.len(),
+                actions.len(),
+                masks.len()
+            ));
+        }
+        if let Some(row) = actions.chunks_exact(ad).position(|a| !(a[0] >= 0.0 && (a[0] as usize) < k)) {
+            return Err(format!("demonstration {row} chooses option {}, not one of the {k}", actions[row * ad]));
+        }
+        let mut x = obs.to_vec();
+        if self.cfg.normalize_obs {
+            self.obs_rms.update(obs);
+            self.obs_rms.normalize(obs, &mut x, OBS_CLIP);
+            self.obs_rms.normalize(&self.envs.obs, &mut self.next_obs, OBS_CLIP);
+        }
+        let mut order: Vec<usize> = (0..n).collect();
+        let mut losses = Vec::with_capacity(epochs);
+        for _ in 0..epochs {
+            shuffle(&mut order, &mut self.rng);
+            let mut total = 0.0;
+            for mb in order.chunks(batch.max(1)) {
+                let m = mb.len();
+                let gather = |src: &[f32], w: usize| -> Vec<f32> {
+                    mb.iter().flat_map(|&r| &src[r * w..(r + 1) * w]).copied().collect()
+                };
+                let raw = gather(actions, ad);
+                let options: Vec<usize> = raw.chunks_exact(ad).map(|a| a[0] as usize).collect();
+                let cont: Vec<f32> = raw.chunks_exact(ad).flat_map(|a| a[1..].iter().copied()).collect();
+                let mb_masks: Vec<bool> = mb.iter().flat_map(|&r| &masks[r * k..(r + 1) * k]).copied().collect();
+                let obs_t = self.dev.tensor_from_vec(gather(&x, od), (m, od));
+                let cont = self.dev.tensor_from_vec(cont, (m, ad - 1));
+                let h = self.agent.hybrid.as_ref().expect("checked above");
+                let (log_prob, _) = h.log_prob_entropy(obs_t.leaky_trace(), &options, &cont, &mb_masks);
+                let loss = log_prob.mean().negate();
+                total += loss.as_vec()[0] * m as f32;
+                let mut grads = loss.backward();
+                clip_grad_norm(&mut self.agent, &mut grads, self.cfg.max_grad_norm);
+                self.optimizer.update(&mut self.agent, &mut grads);
+            }
+            losses.push(total / n as f32);
+        }
+        Ok(losses)
+    }
+
     fn update(&mut self) -> IterationMetrics {
         let cfg = self.cfg.clone();
         let b = &self.buf;

@@ -98,3 +98,56 @@ fn hybrid_ppo_learns_the_choice_and_the_target_within_the_mask() {
     h.mode(&[0.0, 1.0], &[true, false, true], &mut a);
     assert_eq!(a[0], 2.0, "context B: option 2");
 }
+
+#[test]
+fn behaviour_cloning_fits_demonstrated_choices_and_targets_within_the_mask() {
+    // Demonstrations of the best play: context A takes option 1 with target 0.5, context B
+    // option 2. After fitting, the head's mode reproduces them (normalised observations,
+    // as the meta-controller uses), and its likelihood of them went up.
+    let cfg = PpoConfig {
+        seed: 5,
+        num_envs: 2,
+        num_steps: 8,
+        learning_rate: 3e-3,
+        policy: PolicyConfig {
+            policy_hidden: vec![16],
+            value_hidden: vec![16],
+            init_log_std: -1.0,
+            learn_log_std: true,
+        },
+        ..PpoConfig::default()
+    };
+    let mut ppo = Ppo::new(cfg, (0..2).map(|_| Choice { context_b: false }).collect());
+    let (mut obs, mut actions, mut masks) = (Vec::new(), Vec::new(), Vec::new());
+    for i in 0..64 {
+        if i % 2 == 0 {
+            obs.extend_from_slice(&[1.0, 0.0]);
+            actions.extend_from_slice(&[1.0, 0.5]);
+            masks.extend_from_slice(&[true, true, false]);
+        } else {
+            obs.extend_from_slice(&[0.0, 1.0]);
+            actions.extend_from_slice(&[2.0, 0.0]);
+            masks.extend_from_slice(&[true, false, true]);
+        }
+    }
+    let losses = ppo.behaviour_clone(&obs, &actions, &masks, 200, 16).expect("fit");
+    assert_eq!(losses.len(), 200);
+    assert!(losses[199] < losses[0] - 0.5, "the likelihood went up: {} → {}", losses[0], losses[199]);
+    let mut h = ppo.hybrid_inference().expect("hybrid head");
+    let mut a = [0.0f32; 2];
+    let mut raw = [0.0f32; 2];
+    ppo.obs_rms.normalize(&[1.0, 0.0], &mut raw, repertoire_learn::ppo::OBS_CLIP);
+    h.mode(&raw, &[true, true, false], &mut a);
+    assert_eq!(a[0], 1.0, "context A: option 1");
+    assert!((a[1] - 0.5).abs() < 0.15, "context A: target ≈ 0.5, got {}", a[1]);
+    ppo.obs_rms.normalize(&[0.0, 1.0], &mut raw, repertoire_learn::ppo::OBS_CLIP);
+    h.mode(&raw, &[true, false, true], &mut a);
+    assert_eq!(a[0], 2.0, "context B: option 2");
+
+    // Rows of the wrong width, or an option the head does not have, are refused.
+    assert!(ppo.behaviour_clone(&obs[..63], &actions, &masks, 1, 16).is_err());
+    let mut bad = actions.clone();
+    bad[0] = 7.0;
+    let err = ppo.behaviour_clone(&obs, &bad, &masks, 1, 16).expect_err("option 7 of 3");
+    assert!(err.contains("option 7"), "{err}");
+}

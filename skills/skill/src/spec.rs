@@ -125,7 +125,7 @@ pub enum Goal {
         /// so an episode walks to target after target. 0: one target per episode.
         #[serde(default)]
         reach_m: f64,
-        /// > 0: the goal term is DeepMimic's target-heading reward `exp(−speed_scale ·
+        /// Above 0, the goal term is DeepMimic's target-heading reward `exp(−speed_scale ·
         /// max(0, v_ref − v·u)²)`, with `u` the unit vector to the target, `v` the root's
         /// velocity and `v_ref` the clip's root speed at that frame (walk towards the target
         /// at the clip's pace), instead of the sigmoid on the distance's rate, which pays fully
