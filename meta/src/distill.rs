@@ -11,15 +11,13 @@ use std::time::Instant;
 
 use rand::SeedableRng;
 use rayon::prelude::*;
-use repertoire_learn::acting::ActingHybrid;
 use repertoire_learn::env::{Env, EnvRng};
 use repertoire_learn::ppo::{Ppo, PpoConfig};
-use repertoire_learn::run_dir::git_hash;
 
 use crate::env::{MetaEnv, MetaSetup};
 use crate::error::{MetaError, Result};
 use crate::planner::{Planner, PlannerConfig};
-use crate::train::{MetaManifest, MetaTrainOptions, Schedule, run_iterations};
+use crate::train::{MetaManifest, MetaTrainOptions, Schedule, TrainedRun, run_iterations, save_controller};
 
 /// Options of a distillation.
 #[derive(Debug, Clone)]
@@ -153,27 +151,14 @@ pub fn distill(setup: Arc<MetaSetup>, opts: &DistillOptions) -> Result<(MetaMani
         advances = schedule.into_history();
     }
 
-    std::fs::create_dir_all(&opts.out).map_err(|e| MetaError::Invalid(format!("{}: {e}", opts.out.display())))?;
-    let head = ActingHybrid::from_ppo(&ppo).expect("the meta environment has hybrid actions");
-    head.save(&opts.out.join("meta.safetensors")).map_err(|e| MetaError::Invalid(e.to_string()))?;
-    let manifest = MetaManifest {
-        scenario: setup.model.scenario.path.display().to_string(),
-        skills: setup.skills.iter().map(|s| s.name.clone()).collect(),
-        skill_weights: setup.skills.iter().map(|s| s.policy_fnv1a).collect(),
-        body_hash: setup.model.body.content_hash(),
-        obs_dim: setup.obs_dim(),
-        ppo: ppo.cfg.clone(),
-        iterations: ppo.iteration,
+    let run = TrainedRun {
         samples: demonstrations as u64 + ppo.global_step,
         seconds: started.elapsed().as_secs_f64(),
         curriculum,
         advances,
-        command: opts.command.clone(),
-        git_hash: git_hash(),
+        command: &opts.command,
     };
-    let text = ron::ser::to_string_pretty(&manifest, ron::ser::PrettyConfig::new().depth_limit(2))
-        .map_err(|e| MetaError::Invalid(e.to_string()))?;
-    repertoire_skill::library::write_atomic(&opts.out.join("meta.ron"), text.as_bytes())?;
+    let manifest = save_controller(&setup, &ppo, &opts.out, run)?;
     let figures = DistillFigures { episodes: episodes.len(), successes, demonstrations, losses, planning_s, fitting_s };
     Ok((manifest, figures))
 }

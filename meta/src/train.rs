@@ -90,9 +90,41 @@ pub fn train(setup: Arc<MetaSetup>, opts: &MetaTrainOptions) -> Result<(MetaMani
     let mut ppo = Ppo::new(opts.ppo.clone(), envs);
     let started = Instant::now();
     let history = run_iterations(&mut ppo, &mut schedule, opts, "skills")?;
-    std::fs::create_dir_all(&opts.out).map_err(|e| MetaError::Invalid(format!("{}: {e}", opts.out.display())))?;
-    let head = ActingHybrid::from_ppo(&ppo).expect("the meta environment has hybrid actions");
-    head.save(&opts.out.join("meta.safetensors")).map_err(|e| MetaError::Invalid(e.to_string()))?;
+    let run = TrainedRun {
+        samples: ppo.global_step,
+        seconds: started.elapsed().as_secs_f64(),
+        curriculum: schedule.is_on(),
+        advances: schedule.into_history(),
+        command: &opts.command,
+    };
+    let manifest = save_controller(&setup, &ppo, &opts.out, run)?;
+    Ok((manifest, history))
+}
+
+/// What a controller's manifest records of the run that made it.
+pub(crate) struct TrainedRun<'a> {
+    /// Decisions it learned from.
+    pub samples: u64,
+    /// Wall-clock seconds.
+    pub seconds: f64,
+    /// Whether the zone curriculum was on, and its switches.
+    pub curriculum: bool,
+    pub advances: Vec<Advance>,
+    /// The command line.
+    pub command: &'a str,
+}
+
+/// Writes `ppo`'s hybrid head (`meta.safetensors`) and its manifest (`meta.ron`, pinning the
+/// setup's skills) into `out`.
+pub(crate) fn save_controller<E: Env>(
+    setup: &MetaSetup,
+    ppo: &Ppo<E>,
+    out: &Path,
+    run: TrainedRun<'_>,
+) -> Result<MetaManifest> {
+    std::fs::create_dir_all(out).map_err(|e| MetaError::Invalid(format!("{}: {e}", out.display())))?;
+    let head = ActingHybrid::from_ppo(ppo).expect("the meta environment has hybrid actions");
+    head.save(&out.join("meta.safetensors")).map_err(|e| MetaError::Invalid(e.to_string()))?;
     let manifest = MetaManifest {
         scenario: setup.model.scenario.path.display().to_string(),
         skills: setup.skills.iter().map(|s| s.name.clone()).collect(),
@@ -101,17 +133,17 @@ pub fn train(setup: Arc<MetaSetup>, opts: &MetaTrainOptions) -> Result<(MetaMani
         obs_dim: setup.obs_dim(),
         ppo: ppo.cfg.clone(),
         iterations: ppo.iteration,
-        samples: ppo.global_step,
-        seconds: started.elapsed().as_secs_f64(),
-        curriculum: schedule.is_on(),
-        advances: schedule.into_history(),
-        command: opts.command.clone(),
+        samples: run.samples,
+        seconds: run.seconds,
+        curriculum: run.curriculum,
+        advances: run.advances,
+        command: run.command.to_string(),
         git_hash: git_hash(),
     };
     let text = ron::ser::to_string_pretty(&manifest, ron::ser::PrettyConfig::new().depth_limit(2))
         .map_err(|e| MetaError::Invalid(e.to_string()))?;
-    repertoire_skill::library::write_atomic(&opts.out.join("meta.ron"), text.as_bytes())?;
-    Ok((manifest, history))
+    repertoire_skill::library::write_atomic(&out.join("meta.ron"), text.as_bytes())?;
+    Ok(manifest)
 }
 
 /// Runs `ppo` to its iteration count with the zone curriculum `schedule`, logging every

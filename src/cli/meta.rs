@@ -280,11 +280,7 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
             let out = out.unwrap_or_else(|| {
                 PathBuf::from("runs").join(format!("meta-distill-{}", setup.model.scenario.scenario.name))
             });
-            let zones = if zones.is_empty() {
-                setup.model.scenario.scenario.spawn.iter().map(|z| z.name.clone()).collect()
-            } else {
-                zones
-            };
+            let zones = zones_or_all(zones, &setup.model.scenario.scenario);
             let opts = DistillOptions {
                 out: out.clone(),
                 episodes,
@@ -368,11 +364,7 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
                 let out = out.unwrap_or_else(|| {
                     PathBuf::from("runs").join(format!("planner-{}", setup.model.scenario.scenario.name))
                 });
-                let zones = if zones.is_empty() {
-                    setup.model.scenario.scenario.spawn.iter().map(|z| z.name.clone()).collect()
-                } else {
-                    zones
-                };
+                let zones = zones_or_all(zones, &setup.model.scenario.scenario);
                 let cfg = PlannerConfig { horizon, repeats };
                 let trials = trials.unwrap_or(100);
                 let started = std::time::Instant::now();
@@ -403,11 +395,7 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
             }
             if let Some((model, dir)) = latent_low_level(file.as_ref(), latent)? {
                 no_skill_options(&chain, &skills)?;
-                let zones = if zones.is_empty() {
-                    model.scenario.scenario.spawn.iter().map(|z| z.name.clone()).collect()
-                } else {
-                    zones
-                };
+                let zones = zones_or_all(zones, &model.scenario.scenario);
                 let args = LatentEval { library, meta, trials: trials.unwrap_or(10_000), zones, batch, seed, out };
                 return eval_latent(model, &dir, args);
             }
@@ -443,11 +431,7 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
                 }
             }
             let trials = trials.unwrap_or(10_000);
-            let zones = if zones.is_empty() {
-                setup.model.scenario.scenario.spawn.iter().map(|z| z.name.clone()).collect()
-            } else {
-                zones
-            };
+            let zones = zones_or_all(zones, &setup.model.scenario.scenario);
             let report = evaluate(&setup, &head, &zones, trials, batch, seed)?;
             print!("{}", report.markdown());
             report.write(&out)?;
@@ -465,6 +449,11 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
             Ok(())
         }
     }
+}
+
+/// `zones`, or every spawn zone of `scenario` when none are named.
+fn zones_or_all(zones: Vec<String>, scenario: &repertoire_scenes::Scenario) -> Vec<String> {
+    if zones.is_empty() { scenario.spawn.iter().map(|z| z.name.clone()).collect() } else { zones }
 }
 
 /// Writes replay pages beside the worst episodes' recordings and says where they are.
