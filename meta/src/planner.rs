@@ -218,16 +218,15 @@ impl Planner {
     fn search(&mut self, state: &[f64], current: Option<usize>) -> Outcome {
         let k = self.setup.skills.len();
         self.setup.graph.allowed(current, &mut self.mask);
-        let first: Vec<usize> = (0..k).filter(|&c| self.mask[c]).collect();
+        // Terminal skills right away first: the shortest plans.
+        let mut order: Vec<usize> = (0..k).filter(|&c| self.mask[c]).collect();
+        order.sort_by_key(|&c| !self.terminal[c]);
         let mut best: Option<Outcome> = None;
         let consider = |o: Outcome, best: &mut Option<Outcome>| {
             if best.as_ref().is_none_or(|b| o.better_than(b)) {
                 *best = Some(o);
             }
         };
-        // Terminal skills right away first: the shortest plans.
-        let mut order = first.clone();
-        order.sort_by_key(|&c| !self.terminal[c]);
         for &o in &order {
             if self.terminal[o] {
                 self.restore(state);

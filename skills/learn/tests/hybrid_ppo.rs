@@ -58,6 +58,11 @@ impl Env for Choice {
     }
 }
 
+/// One hidden layer of 16 for both networks, action std e⁻¹ to start.
+fn small_policy() -> PolicyConfig {
+    PolicyConfig { policy_hidden: vec![16], value_hidden: vec![16], init_log_std: -1.0, learn_log_std: true }
+}
+
 #[test]
 fn hybrid_ppo_learns_the_choice_and_the_target_within_the_mask() {
     let cfg = PpoConfig {
@@ -71,12 +76,7 @@ fn hybrid_ppo_learns_the_choice_and_the_target_within_the_mask() {
         update_epochs: 4,
         normalize_obs: false,
         normalize_reward: false,
-        policy: PolicyConfig {
-            policy_hidden: vec![16],
-            value_hidden: vec![16],
-            init_log_std: -1.0,
-            learn_log_std: true,
-        },
+        policy: small_policy(),
         ..PpoConfig::default()
     };
     let envs = (0..8).map(|_| Choice { context_b: false }).collect();
@@ -109,12 +109,7 @@ fn behaviour_cloning_fits_demonstrated_choices_and_targets_within_the_mask() {
         num_envs: 2,
         num_steps: 8,
         learning_rate: 3e-3,
-        policy: PolicyConfig {
-            policy_hidden: vec![16],
-            value_hidden: vec![16],
-            init_log_std: -1.0,
-            learn_log_std: true,
-        },
+        policy: small_policy(),
         ..PpoConfig::default()
     };
     let mut ppo = Ppo::new(cfg, (0..2).map(|_| Choice { context_b: false }).collect());
