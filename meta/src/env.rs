@@ -278,7 +278,7 @@ pub struct MetaEnv {
 
 /// Names of the terms a recorded sitting episode carries per control tick (other tasks: see
 /// [`TaskSpec::recorded_terms`]).
-pub const RECORDED_TERMS: [&str; 4] = ["seat_distance", "on_seat", "seat_contact_s", "min_distance"];
+pub const RECORDED_TERMS: [&str; 4] = ["seat_distance", "seated", "seated_s", "min_distance"];
 
 impl MetaEnv {
     /// A meta environment over `setup`.

@@ -36,13 +36,26 @@ impl<'a> From<&'a ActingHybrid> for Controller<'a> {
 }
 
 /// One episode's decision maker for a [`Controller`].
-enum Acting {
+pub(crate) enum Acting {
     Learned(Box<ActingHybrid>),
     Planner(Box<Planner>),
 }
 
+impl Acting {
+    /// The decision for `env`, whose observation is `obs`, into `act` (`mask`: scratch).
+    pub(crate) fn act(&mut self, env: &MetaEnv, obs: &[f32], mask: &mut [bool], act: &mut [f32]) {
+        match self {
+            Acting::Learned(head) => {
+                env.option_mask(mask);
+                head.act(obs, mask, act);
+            }
+            Acting::Planner(planner) => planner.act(env, act),
+        }
+    }
+}
+
 impl Controller<'_> {
-    fn start(&self, setup: &Arc<MetaSetup>) -> Acting {
+    pub(crate) fn start(&self, setup: &Arc<MetaSetup>) -> Acting {
         match self {
             Controller::Learned(head) => Acting::Learned(Box::new((*head).clone())),
             Controller::Planner(cfg) => Acting::Planner(Box::new(Planner::new(Arc::clone(setup), *cfg))),
@@ -162,13 +175,7 @@ fn run_trial(
     let mut mask = vec![true; names.len()];
     env.reset(&mut rng, &mut obs);
     loop {
-        match &mut ctl {
-            Acting::Learned(head) => {
-                env.option_mask(&mut mask);
-                head.act(&obs, &mask, &mut act);
-            }
-            Acting::Planner(planner) => planner.act(&env, &mut act),
-        }
+        ctl.act(&env, &obs, &mut mask, &mut act);
         let out = env.step(&act, &mut obs);
         if out.terminated || out.truncated {
             let trial = trial_of(setup, &env, i, zone, &out.terms, &names);

@@ -1,7 +1,9 @@
 //! [`SitJudge`]: the sitting task's success test and its per-trial figures.
 //!
-//! Success (Chao et al.): the pelvis touches the seat continuously for `hold_s` seconds; any
-//! control tick without contact restarts the count. The judge also keeps the trial's minimum
+//! Success (Chao et al.): the character sits continuously for `hold_s` seconds; any control
+//! tick not seated restarts the count. Seated is the pelvis on the seat, facing within the
+//! scenario's `facing_deg` of the chair's front ([`crate::task::seated`]; 180° is the paper's
+//! literal pelvis–seat contact). The judge also keeps the trial's minimum
 //! pelvis-to-seat-centre distance.
 
 /// Judges one sitting trial, tick by tick.
@@ -26,11 +28,11 @@ impl SitJudge {
         }
     }
 
-    /// Records one control tick: whether the pelvis touched the seat and its distance to the
+    /// Records one control tick: whether the character sat and the pelvis' distance to the
     /// seat centre. Returns whether the trial has succeeded.
-    pub fn tick(&mut self, pelvis_on_seat: bool, distance: f64) -> bool {
+    pub fn tick(&mut self, seated: bool, distance: f64) -> bool {
         self.min_distance = self.min_distance.min(distance);
-        self.streak = if pelvis_on_seat { self.streak + 1 } else { 0 };
+        self.streak = if seated { self.streak + 1 } else { 0 };
         if self.streak >= self.hold_ticks {
             self.succeeded = true;
         }

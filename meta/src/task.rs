@@ -4,6 +4,7 @@
 //! a [`TaskState`] for its current episode. Sitting, the warehouse and the toss are the three.
 
 use rand::Rng;
+use repertoire_scenes::math::wrap_angle;
 use repertoire_scenes::scenario::{Task as ScenarioTask, WarehousePhase};
 use repertoire_scenes::{Feature, World, WorldModel};
 use repertoire_skill::reference::to_heading;
@@ -28,13 +29,17 @@ const PUTDOWN_START_M: f64 = 0.55;
 /// A task resolved to prop indices of one scene.
 #[derive(Debug, Clone, PartialEq)]
 pub enum TaskSpec {
-    /// Sit on a chair: 1 per decision on the seat, else `0.5·(−V_sit)`; success after `hold_s`
-    /// seconds of unbroken pelvis–seat contact.
+    /// Sit on a chair: 1 per decision seated, else `0.5·(−V_sit)`; success after `hold_s`
+    /// seconds seated without a break. Seated: the pelvis on the seat, heading within `facing`
+    /// of the chair's front ([`seated`]).
     Sit {
         /// The chair (prop index).
         seat: usize,
         /// Seconds of contact that count as success.
         hold_s: f64,
+        /// Largest angle between the pelvis heading and the chair's front that counts as
+        /// seated (radians; π: any contact).
+        facing: f64,
     },
     /// The warehouse (see [`crate::warehouse`]).
     Warehouse(WarehouseSpec),
@@ -60,9 +65,9 @@ impl TaskSpec {
     pub fn of(model: &WorldModel) -> Result<Self> {
         let sc = &model.scenario;
         match &sc.scenario.task {
-            ScenarioTask::Sit { seat, hold_s, .. } => {
+            ScenarioTask::Sit { seat, hold_s, facing_deg, .. } => {
                 let seat = model.prop_id(seat).ok_or_else(|| MetaError::Invalid(format!("no seat prop `{seat}`")))?;
-                Ok(TaskSpec::Sit { seat, hold_s: *hold_s })
+                Ok(TaskSpec::Sit { seat, hold_s: *hold_s, facing: facing_deg.to_radians() })
             }
             ScenarioTask::Warehouse(w) => Ok(TaskSpec::Warehouse(WarehouseSpec::new(model, w)?)),
             ScenarioTask::Toss(t) => Ok(TaskSpec::Toss(TossSpec::new(model, t)?)),
@@ -116,7 +121,7 @@ impl TaskSpec {
     /// Names of the four values recorded per control tick in recordings.
     pub fn recorded_terms(&self) -> [&'static str; 4] {
         match self {
-            TaskSpec::Sit { .. } => ["seat_distance", "on_seat", "seat_contact_s", "min_distance"],
+            TaskSpec::Sit { .. } => ["seat_distance", "seated", "seated_s", "min_distance"],
             TaskSpec::Warehouse(_) => ["phase", "phases_done", "focal_distance", "hands_on_box"],
             TaskSpec::Toss(_) => ["caught", "bucket_s", "ball_to_bucket", "hands_on_ball"],
         }
@@ -180,6 +185,13 @@ pub enum TaskState {
 }
 
 /// Distance from the pelvis to the seat's top centre.
+/// Whether the character sits on `seat`: the pelvis touches it and the pelvis heading is
+/// within `facing` radians of the way the chair faces (its +x). Falling forward onto the seat
+/// from the front, facing the backrest, touches it without sitting.
+pub fn seated(world: &World, seat: usize, facing: f64) -> bool {
+    world.contacts().pelvis_on_prop(seat) && wrap_angle(world.heading() - world.placements()[seat].yaw).abs() <= facing
+}
+
 fn seat_distance(world: &World, seat: usize) -> f64 {
     let p = world.pelvis_frame().pos;
     let pl = world.placements()[seat];
@@ -269,9 +281,8 @@ impl TaskState {
     /// task's own test (the box or ball on the floor; falls are the environment's).
     pub fn tick(&mut self, spec: &TaskSpec, world: &World, dt: f64) -> bool {
         match (spec, self) {
-            (TaskSpec::Sit { seat, .. }, TaskState::Sit { judge, .. }) => {
-                let on = world.contacts().pelvis_on_prop(*seat);
-                judge.tick(on, seat_distance(world, *seat));
+            (TaskSpec::Sit { seat, facing, .. }, TaskState::Sit { judge, .. }) => {
+                judge.tick(seated(world, *seat, *facing), seat_distance(world, *seat));
                 false
             }
             (TaskSpec::Warehouse(w), TaskState::Warehouse(judge)) => {
@@ -309,9 +320,9 @@ impl TaskState {
     /// The reward of a decision that ran `seconds` and ended with a fall when `fell`.
     pub fn decision_reward(&mut self, spec: &TaskSpec, world: &World, fell: bool, seconds: f64) -> f32 {
         match (spec, self) {
-            (TaskSpec::Sit { seat, .. }, TaskState::Sit { last_distance, .. }) => {
+            (TaskSpec::Sit { seat, facing, .. }, TaskState::Sit { last_distance, .. }) => {
                 let d = seat_distance(world, *seat);
-                let on_seat = world.contacts().pelvis_on_prop(*seat);
+                let on_seat = seated(world, *seat, *facing);
                 let reward = if fell {
                     0.0
                 } else if on_seat {
@@ -374,9 +385,9 @@ impl TaskState {
     /// The four values recorded per control tick (see [`TaskSpec::recorded_terms`]).
     pub fn recorded(&self, spec: &TaskSpec, world: &World, control_dt: f64) -> [f32; 4] {
         match (spec, self) {
-            (TaskSpec::Sit { seat, .. }, TaskState::Sit { judge, .. }) => [
+            (TaskSpec::Sit { seat, facing, .. }, TaskState::Sit { judge, .. }) => [
                 seat_distance(world, *seat) as f32,
-                f32::from(u8::from(world.contacts().pelvis_on_prop(*seat))),
+                f32::from(u8::from(seated(world, *seat, *facing))),
                 (f64::from(judge.streak()) * control_dt) as f32,
                 judge.min_distance as f32,
             ],

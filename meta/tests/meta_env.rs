@@ -375,3 +375,77 @@ fn a_walk_that_takes_a_target_is_steered_every_decision() {
     }
     assert_eq!(env.chosen, [0], "walk all along");
 }
+
+#[test]
+fn deliveries_record_the_seat_where_the_controller_hands_over_within_the_window() {
+    use repertoire_meta::deliver::{DeliveryWindow, deliver};
+    use repertoire_meta::eval::Controller;
+    use repertoire_meta::planner::PlannerConfig;
+    let s = setup(None);
+    let planner = Controller::Planner(PlannerConfig { horizon: 2, repeats: 0 });
+    let zones = ["front".to_string(), "sides".to_string()];
+    let window = |max_offset_m, max_turn_deg| DeliveryWindow { expected: [-0.4, 0.0, 0.0], max_offset_m, max_turn_deg };
+    let all = deliver(&s, planner, "sit", &zones, 2, 3, window(100.0, 180.0), 1000).expect("deliver");
+    assert_eq!(all.episodes, 4);
+    assert!(all.decisions >= 4, "at least the first decision of each episode: {}", all.decisions);
+    assert_eq!(all.in_window, all.decisions, "an unbounded window keeps every decision");
+    assert_eq!(all.pool.states.len(), all.decisions);
+    assert_eq!(all.pool.body_hash, s.model.body.content_hash());
+    // Sit ends each planner episode that reaches it: at most one handover per episode here,
+    // and every handover in an unbounded window.
+    assert!(all.handovers <= all.episodes && all.handovers_in_window == all.handovers, "{all:?}");
+    // The start states: standing 1.5 m or more from the chair, so the seat is well away.
+    let far = all.pool.states.iter().filter(|st| st.seat.is_some_and(|p| p[0].hypot(p[1]) > 1.0)).count();
+    assert!(far >= 4, "{far} states with the seat over 1 m away");
+    let again = deliver(&s, planner, "sit", &zones, 2, 3, window(100.0, 180.0), 1000).expect("again");
+    assert_eq!(again.pool, all.pool, "reproducible for a seed");
+
+    // A window keeps exactly the states whose seat lies in it; the cap spreads what it keeps.
+    let w = window(1.8, 90.0);
+    let some = deliver(&s, planner, "sit", &zones, 2, 3, w, 1000).expect("deliver");
+    let inside = all.pool.states.iter().filter(|st| w.contains(st.seat.unwrap())).count();
+    assert_eq!(some.in_window, inside);
+    assert_eq!(some.handovers, all.handovers, "the window only filters what is kept");
+    assert!(some.handovers_in_window <= some.handovers);
+    assert!(some.pool.states.iter().all(|st| w.contains(st.seat.unwrap())));
+    let capped = deliver(&s, planner, "sit", &zones, 2, 3, window(100.0, 180.0), 3).expect("capped");
+    assert!(capped.pool.states.len() <= 3 && !capped.pool.states.is_empty());
+    assert_eq!(capped.pool.states[0], all.pool.states[0]);
+    let none = deliver(&s, planner, "sit", &zones, 2, 3, window(0.0, 0.0), 1000).expect("deliver");
+    assert_eq!(none.in_window, 0);
+
+    let err = deliver(&s, planner, "dance", &zones, 1, 3, w, 10).expect_err("unknown skill").to_string();
+    assert!(err.contains("`dance`") && err.contains("walk"), "{err}");
+    let err = deliver(&s, planner, "sit", &["nowhere".to_string()], 1, 3, w, 10).expect_err("zone").to_string();
+    assert!(err.contains("nowhere"), "{err}");
+}
+
+#[test]
+fn seated_means_on_the_seat_facing_the_chairs_front_not_any_contact() {
+    // The sit clip played open loop onto the chair where the skill puts it: the character sits,
+    // facing the way the chair faces. The same contact with the chair turned round (the
+    // character now faces its backrest, as after falling forward onto the seat) is contact,
+    // but not sitting, unless the scenario counts any contact (`facing_deg: 180`).
+    use repertoire_meta::task::seated;
+    use repertoire_skill::imitation::ImitationTask;
+    let specs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../skills/skill/specs");
+    let s = SkillSetup::new(SpecFile::load(&specs.join("sit.ron")).expect("spec"), library()).expect("sit");
+    let (chair, _) = s.settings.seat.expect("sit has a seat");
+    let r = &s.settings.reference;
+    let mut env = s.env();
+    ImitationTask::new(s.settings.clone()).place_at_frame(env.world_mut(), 0, 0.4, -0.3, 0.7);
+    let world = env.world_mut();
+    let mut sat = false;
+    for f in 1..r.frames() + 30 {
+        world.step(r.joints_at(f.min(r.frames() - 1))).expect("steps");
+        sat |= world.contacts().pelvis_on_prop(chair) && f + 1 >= r.frames();
+    }
+    assert!(sat && world.contacts().pelvis_on_prop(chair), "the open-loop clip ends seated");
+    let sixty = 60f64.to_radians();
+    assert!(seated(world, chair, sixty), "seated facing the chair's front");
+    let pl = world.placements()[chair];
+    world.move_prop(chair, pl.pos[0], pl.pos[1], pl.yaw + std::f64::consts::PI).expect("turn the chair");
+    assert!(world.contacts().pelvis_on_prop(chair), "still touching the (symmetric) seat");
+    assert!(!seated(world, chair, sixty), "facing the backrest is not sitting");
+    assert!(seated(world, chair, std::f64::consts::PI), "facing_deg 180 counts any contact");
+}

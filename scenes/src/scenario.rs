@@ -469,6 +469,12 @@ pub enum Task {
         /// Episode length in seconds.
         #[serde(default = "Task::default_limit")]
         time_limit_s: f64,
+        /// Seated means the pelvis on the seat *and* the pelvis heading within this many
+        /// degrees of the way the chair faces (its +x): a character that falls forward onto the
+        /// seat from the front, facing the backrest, touches it but does not sit. 180 counts
+        /// any contact (the sitting paper's literal test).
+        #[serde(default = "Task::default_facing")]
+        facing_deg: f64,
     },
     /// Catch & Carry's warehouse: go to the pedestal holding the box, lift the box, carry it to
     /// another pedestal, put it down, and again (GOTO → LIFT → CARRY → PUTDOWN → GOTO …).
@@ -611,6 +617,9 @@ impl Task {
     }
     fn default_limit() -> f64 {
         20.0
+    }
+    fn default_facing() -> f64 {
+        60.0
     }
 
     /// Episode length in seconds.
@@ -816,7 +825,13 @@ impl ScenarioFile {
         }
 
         match &s.task {
-            Task::Sit { seat, hold_s, time_limit_s } => {
+            Task::Sit { seat, hold_s, time_limit_s, facing_deg } => {
+                if !(*facing_deg > 0.0 && *facing_deg <= 180.0) {
+                    return Err(self.invalid(
+                        Some("facing_deg"),
+                        format!("the sit task's facing_deg must be in (0, 180], got {facing_deg}"),
+                    ));
+                }
                 match self.prop(seat) {
                     Some(Prop::Chair(_)) => {}
                     Some(other) => {

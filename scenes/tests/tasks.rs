@@ -164,6 +164,20 @@ fn prop_bindings_parse_and_bad_ones_are_located() {
     // A binding to an existing prop is accepted in any task.
     let text = format!("{HEAD}\n    {sit}\n    bind: {{\"seat\": Prop(\"chair\")}},\n)");
     assert_eq!(parse(&text).unwrap().scenario.bind.get("seat"), Some(&PropBinding::Prop("chair".into())));
+
+    // The sit task counts as seated only facing within `facing_deg` of the chair's front: 60
+    // by default, any angle in (0, 180]; others are refused, naming the field.
+    match parse(&format!("{HEAD}\n    {sit}\n)")).unwrap().scenario.task {
+        Task::Sit { facing_deg, .. } => assert_eq!(facing_deg, 60.0),
+        other => panic!("{other:?}"),
+    }
+    for bad in ["0.0", "-10.0", "181.0"] {
+        let text = format!("{HEAD}\n    task: Sit(seat: \"chair\", facing_deg: {bad}),\n)");
+        let msg = parse(&text).err().unwrap_or_else(|| panic!("accepted facing_deg {bad}")).to_string();
+        assert!(msg.starts_with("task.ron:") && msg.contains("facing_deg"), "{bad} → {msg}");
+    }
+    let text = format!("{HEAD}\n    task: Sit(seat: \"chair\", facing_deg: 180.0),\n)");
+    assert!(parse(&text).is_ok(), "180 counts any contact");
 }
 
 #[test]

@@ -7,6 +7,7 @@ use std::sync::Arc;
 use anyhow::{Context, Result, bail};
 use clap::Subcommand;
 use repertoire_learn::ppo::IterationMetrics;
+use repertoire_meta::deliver::{DeliveryWindow, deliver};
 use repertoire_meta::distill::{DistillOptions, distill};
 use repertoire_meta::eval::{Controller, evaluate, save_worst};
 use repertoire_meta::latent::{self, LatentSetup};
@@ -27,6 +28,29 @@ pub fn default_meta(setup: &MetaSetup) -> PathBuf {
     match setup.task {
         TaskSpec::Sit { .. } => PathBuf::from(DEFAULT_META),
         _ => Path::new(DEFAULT_LIBRARY).join(format!("meta-{}", setup.model.scenario.scenario.name)),
+    }
+}
+
+/// The search-based planner's settings (`meta eval --planner`, `meta distill`, `meta deliver
+/// --planner`).
+#[derive(Debug, clap::Args)]
+pub struct PlannerArgs {
+    /// Planner: most decisions one plan is simulated for.
+    #[arg(long, default_value_t = PlannerConfig::default().horizon)]
+    horizon: u32,
+    /// Planner: most extra decisions an option is held before a terminal skill (sit) is tried
+    /// after it.
+    #[arg(long, default_value_t = PlannerConfig::default().repeats)]
+    repeats: u32,
+}
+
+impl PlannerArgs {
+    /// The planner these settings ask for; a horizon of 0 is refused.
+    fn config(&self) -> Result<PlannerConfig> {
+        if self.horizon == 0 {
+            bail!("--horizon must be at least 1 decision");
+        }
+        Ok(PlannerConfig { horizon: self.horizon, repeats: self.repeats })
     }
 }
 
@@ -91,12 +115,8 @@ pub enum MetaCommand {
         /// Zones (default: all of the scenario's).
         #[arg(long, value_delimiter = ',')]
         zones: Vec<String>,
-        /// Planner: most decisions one plan is simulated for.
-        #[arg(long, default_value_t = PlannerConfig::default().horizon)]
-        horizon: u32,
-        /// Planner: most extra decisions an option is held before sit is tried after it.
-        #[arg(long, default_value_t = PlannerConfig::default().repeats)]
-        repeats: u32,
+        #[command(flatten)]
+        plan: PlannerArgs,
         /// Fit only the decisions of the planner's successful episodes.
         #[arg(long)]
         successful_only: bool,
@@ -119,6 +139,51 @@ pub enum MetaCommand {
         /// Open every zone from the start in those iterations.
         #[arg(long)]
         no_curriculum: bool,
+    },
+    /// Record where a controller delivers the character to a skill (sitting scenarios): at
+    /// every decision the skill is not running, the state with the seat's pose, kept when the
+    /// seat lies within --max-offset / --max-turn of where the skill's clip expects it. The
+    /// result is a pool: fine-tune the skill from it with `repertoire skill finetune SPEC
+    /// --from OUT.ron`, so it starts where the controller hands over, chair and all.
+    Deliver {
+        /// Scenario RON file (default: the built-in scenes/sit.ron).
+        file: Option<PathBuf>,
+        /// The skill's spec (its clip says where the seat is expected).
+        #[arg(long, default_value = "skills/skill/specs/sit.ron")]
+        spec: PathBuf,
+        /// Skill library.
+        #[arg(long, default_value = DEFAULT_LIBRARY)]
+        library: PathBuf,
+        /// The controller (default: as `meta train` writes it).
+        #[arg(long)]
+        meta: Option<PathBuf>,
+        /// Use the search-based planner (`meta eval --planner`) as the controller instead.
+        #[arg(long)]
+        planner: bool,
+        #[command(flatten)]
+        plan: PlannerArgs,
+        /// Episodes per zone.
+        #[arg(long, default_value_t = 200)]
+        trials: usize,
+        /// Zones (default: all of the scenario's).
+        #[arg(long, value_delimiter = ',')]
+        zones: Vec<String>,
+        /// Seed (a different one from evaluation's default keeps the pool apart from the
+        /// evaluated trials).
+        #[arg(long, default_value_t = 7)]
+        seed: u64,
+        /// Farthest the seat may stand from where the skill expects it (m).
+        #[arg(long, default_value_t = 0.5)]
+        max_offset: f64,
+        /// Largest turn of the seat away from where the skill expects it (degrees).
+        #[arg(long, default_value_t = 45.0)]
+        max_turn: f64,
+        /// Most states kept (an even spread).
+        #[arg(long, default_value_t = 1000)]
+        max_states: usize,
+        /// The pool file (default: runs/delivered-<skill>.ron).
+        #[arg(long)]
+        out: Option<PathBuf>,
     },
     /// Evaluate a trained meta-controller. Sitting: success and minimum distance per zone,
     /// transition matrices. Warehouse: phases completed per episode by start phase and a pick-up
@@ -179,13 +244,8 @@ pub enum MetaCommand {
         /// folder runs/planner-<scenario>).
         #[arg(long)]
         planner: bool,
-        /// Planner: most decisions one plan is simulated for.
-        #[arg(long, default_value_t = PlannerConfig::default().horizon)]
-        horizon: u32,
-        /// Planner: most extra decisions an option is held before a terminal skill (sit) is
-        /// tried after it.
-        #[arg(long, default_value_t = PlannerConfig::default().repeats)]
-        repeats: u32,
+        #[command(flatten)]
+        plan: PlannerArgs,
     },
 }
 
@@ -256,8 +316,7 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
             out,
             episodes,
             zones,
-            horizon,
-            repeats,
+            plan,
             successful_only,
             epochs,
             batch,
@@ -274,8 +333,9 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
                     setup.task.name()
                 );
             }
-            if horizon == 0 || episodes == 0 || epochs == 0 {
-                bail!("--horizon, --episodes and --epochs must each be at least 1");
+            let planner = plan.config()?;
+            if episodes == 0 || epochs == 0 {
+                bail!("--episodes and --epochs must each be at least 1");
             }
             let out = out.unwrap_or_else(|| {
                 PathBuf::from("runs").join(format!("meta-distill-{}", setup.model.scenario.scenario.name))
@@ -285,7 +345,7 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
                 out: out.clone(),
                 episodes,
                 zones,
-                planner: PlannerConfig { horizon, repeats },
+                planner,
                 successful_only,
                 epochs,
                 batch,
@@ -326,6 +386,75 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
             );
             Ok(())
         }
+        MetaCommand::Deliver {
+            file,
+            spec,
+            library,
+            meta,
+            planner,
+            plan,
+            trials,
+            zones,
+            seed,
+            max_offset,
+            max_turn,
+            max_states,
+            out,
+        } => {
+            let skill = repertoire_skill::SkillSetup::new(repertoire_skill::spec::SpecFile::load(&spec)?, &library)?;
+            let name = skill.spec.spec.name.clone();
+            let Some(expected) = skill.seat_at_start() else {
+                bail!("{}: skill `{name}` has no seat goal, so there is no seat to deliver it to", spec.display());
+            };
+            if !(max_offset >= 0.0 && max_turn >= 0.0) {
+                bail!("--max-offset and --max-turn must be at least 0");
+            }
+            let setup = setup(file.as_ref(), &library, &[], &[])?;
+            let zones = zones_or_all(zones, &setup.model.scenario.scenario);
+            let window = DeliveryWindow { expected, max_offset_m: max_offset, max_turn_deg: max_turn };
+            let started = std::time::Instant::now();
+            let delivery = if planner {
+                if meta.is_some() {
+                    bail!("--planner chooses the skills itself: it takes no --meta");
+                }
+                let cfg = plan.config()?;
+                deliver(&setup, Controller::Planner(cfg), &name, &zones, trials, seed, window, max_states)?
+            } else {
+                let meta = meta.unwrap_or_else(|| default_meta(&setup));
+                let (_, head) = load(&meta, &setup)?;
+                deliver(&setup, &head, &name, &zones, trials, seed, window, max_states)?
+            };
+            let out = out.unwrap_or_else(|| PathBuf::from("runs").join(format!("delivered-{name}.ron")));
+            if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+                std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+            }
+            delivery.pool.save(&out)?;
+            println!(
+                "{} episodes, {} decisions before `{name}`, {} with the seat within {max_offset} m / {max_turn}° of \
+                 where `{name}` expects it ({:+.2}, {:+.2} m, {:+.0}°); {} states written to {} in {:.1} s",
+                delivery.episodes,
+                delivery.decisions,
+                delivery.in_window,
+                expected[0],
+                expected[1],
+                expected[2].to_degrees(),
+                delivery.pool.states.len(),
+                out.display(),
+                started.elapsed().as_secs_f64()
+            );
+            println!(
+                "the controller switched to `{name}` {} times, {} of them ({:.1} %) with the seat in the window",
+                delivery.handovers,
+                delivery.handovers_in_window,
+                100.0 * delivery.handovers_in_window as f64 / delivery.handovers.max(1) as f64
+            );
+            println!(
+                "{} episodes succeeded, {} of them after a handover with the seat in the window",
+                delivery.successes, delivery.successes_in_window
+            );
+            println!("fine-tune from it: repertoire skill finetune {} --from {}", spec.display(), out.display());
+            Ok(())
+        }
         MetaCommand::Eval {
             file,
             library,
@@ -343,8 +472,7 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
             worst,
             latent,
             planner,
-            horizon,
-            repeats,
+            plan,
         } => {
             if planner {
                 let setup = setup(file.as_ref(), &library, &chain, &skills)?;
@@ -358,22 +486,21 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
                         setup.task.name()
                     );
                 }
-                if horizon == 0 {
-                    bail!("--horizon must be at least 1 decision");
-                }
                 let out = out.unwrap_or_else(|| {
                     PathBuf::from("runs").join(format!("planner-{}", setup.model.scenario.scenario.name))
                 });
                 let zones = zones_or_all(zones, &setup.model.scenario.scenario);
-                let cfg = PlannerConfig { horizon, repeats };
+                let cfg = plan.config()?;
                 let trials = trials.unwrap_or(100);
                 let started = std::time::Instant::now();
                 let report = evaluate(&setup, Controller::Planner(cfg), &zones, trials, batch, seed)?;
                 print!("{}", report.markdown());
                 report.write(&out)?;
                 println!(
-                    "\nplanner (horizon {horizon}, repeats {repeats}): {} trials in {:.1} s; report.md, trials.csv and \
+                    "\nplanner (horizon {}, repeats {}): {} trials in {:.1} s; report.md, trials.csv and \
                      report.json written to {}",
+                    cfg.horizon,
+                    cfg.repeats,
                     report.trials.len(),
                     started.elapsed().as_secs_f64(),
                     out.display()

@@ -147,9 +147,10 @@ fn on(base: &Option<String>) -> String {
 /// One line for people: what the task asks and how it is judged.
 fn describe_task(task: &Task) -> String {
     match task {
-        Task::Sit { seat, hold_s, time_limit_s } => {
-            format!("Sit on `{seat}`: pelvis on the seat for {hold_s} s within {time_limit_s} s")
-        }
+        Task::Sit { seat, hold_s, time_limit_s, facing_deg } => format!(
+            "Sit on `{seat}`: pelvis on the seat, facing within {facing_deg}° of the chair's front, for {hold_s} s \
+             within {time_limit_s} s"
+        ),
         Task::Warehouse(w) => format!(
             "Warehouse: move `{}` between {}; reach {} m, {} resting contacts, episodes start in {}; {} s",
             w.box_,

@@ -26,6 +26,11 @@ pub enum SkillCommand {
         /// weight, so training starts from the old behaviour.
         #[arg(long)]
         warm_start: bool,
+        /// Start from this other library skill instead (a new skill grown from one it
+        /// extends: carry from walk). Its observation features must begin the spec's; the
+        /// features the spec adds (carry's box) enter with zero weight.
+        #[arg(long, conflicts_with = "warm_start")]
+        warm_start_from: Option<String>,
         #[command(flatten)]
         common: TrainArgs,
     },
@@ -132,14 +137,17 @@ pub struct TrainArgs {
 pub fn run(cmd: SkillCommand) -> Result<()> {
     let command = std::env::args().collect::<Vec<_>>().join(" ");
     match cmd {
-        SkillCommand::Train { spec, warm_start, common } => train_cmd(&spec, None, warm_start, common, command),
+        SkillCommand::Train { spec, warm_start, warm_start_from, common } => {
+            let prior = (warm_start || warm_start_from.is_some()).then_some(warm_start_from);
+            train_cmd(&spec, None, prior, common, command)
+        }
         SkillCommand::Finetune { spec, from, fraction, speed, common } => {
             let speed = match speed.as_deref() {
                 None => (1.0, 1.0),
                 Some(&[lo, hi]) => (lo, hi),
                 Some(v) => bail!("--speed takes two numbers LO,HI, got {v:?}"),
             };
-            train_cmd(&spec, Some((from, fraction, speed)), true, common, command)
+            train_cmd(&spec, Some((from, fraction, speed)), Some(None), common, command)
         }
         SkillCommand::Play { spec, record, html, library, seed, from, web } => {
             play_cmd(&spec, &record, html.as_deref(), &library, seed, from, web.as_deref())
@@ -150,10 +158,13 @@ pub fn run(cmd: SkillCommand) -> Result<()> {
     }
 }
 
+/// Trains `spec_path`'s skill; `finetune`: predecessors, pool share and speed range; `prior`:
+/// `None` a fresh policy, `Some(None)` the library's skill of the spec's name, `Some(Some(n))`
+/// the library's skill `n` grown to the spec's observation.
 fn train_cmd(
     spec_path: &Path,
     finetune: Option<(Vec<String>, f64, (f64, f64))>,
-    init_from_library: bool,
+    prior: Option<Option<String>>,
     a: TrainArgs,
     command: String,
 ) -> Result<()> {
@@ -180,7 +191,8 @@ fn train_cmd(
         envs: a.envs,
         seed: a.seed,
         resume: a.resume,
-        init_from_library,
+        init_from_library: prior.is_some(),
+        prior_skill: prior.flatten(),
         checkpoint_every: a.checkpoint_every,
         serial: a.serial,
         progress: true,

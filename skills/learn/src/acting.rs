@@ -106,14 +106,26 @@ impl ActingPolicy {
         if inputs < have {
             return Err(format!("cannot narrow a policy from {have} to {inputs} inputs"));
         }
+        self.with_inputs_at(have, inputs - have)
+    }
+
+    /// This policy with `count` new observation values inserted before its input `at` (`at`
+    /// = its width appends them), entering as in [`ActingPolicy::widened`]: a skill started
+    /// from another that observes less (carry from walk, which does not see the box).
+    pub fn with_inputs_at(&self, at: usize, count: usize) -> Result<ActingPolicy, String> {
+        let have = self.obs_dim();
+        if at > have {
+            return Err(format!("cannot insert inputs at {at}: the policy takes {have}"));
+        }
         let mut layers = self.mean.layers().to_vec();
         let (_, outputs, w, _) = &mut layers[0];
-        // Row-major [in × out]: the new inputs are new rows at the end.
-        w.resize(inputs * *outputs, 0.0);
-        layers[0].0 = inputs;
+        // Row-major [in × out]: the new inputs are `count` zero rows from row `at`.
+        let outputs = *outputs;
+        w.splice(at * outputs..at * outputs, std::iter::repeat_n(0.0, count * outputs));
+        layers[0].0 = have + count;
         let mut obs_rms = self.obs_rms.clone();
-        obs_rms.mean.resize(inputs, 0.0);
-        obs_rms.var.resize(inputs, 1.0);
+        obs_rms.mean.splice(at..at, std::iter::repeat_n(0.0, count));
+        obs_rms.var.splice(at..at, std::iter::repeat_n(1.0, count));
         Ok(ActingPolicy {
             mean: MlpInference::from_layers(layers)?,
             log_std: self.log_std.clone(),

@@ -214,3 +214,33 @@ fn a_widened_policy_acts_as_before_whatever_its_new_inputs_say() {
     assert_eq!(common::Drift::new(7).act_dim(), old.act_dim());
     wide.load_into(&mut wider_ppo).expect("the widened policy fits");
 }
+
+#[test]
+fn inputs_inserted_mid_observation_change_nothing_until_trained() {
+    // A new skill grown from another sees more features before the task values (carry sees
+    // the box walk never saw): inserted inputs enter with zero weight wherever they go.
+    use repertoire_learn::acting::ActingPolicy;
+    let mut ppo = Ppo::new(common::tiny_config(2), common::cartpoles(2));
+    ppo.iterate();
+    let mut old = ActingPolicy::from_ppo(&ppo);
+    let mut a = vec![0.0; old.act_dim()];
+    let mut b = vec![0.0; old.act_dim()];
+    for at in 0..=4 {
+        let mut grown = old.with_inputs_at(at, 2).expect("insert 2 inputs");
+        assert_eq!(grown.obs_dim(), 6);
+        for (k, extra) in [[0.0, 0.0], [9.0, -4.0], [-1e3, 2.5]].iter().enumerate() {
+            let obs = [0.1 * k as f32, -0.2, 0.05, 0.3];
+            old.act(&obs, &mut a);
+            let mut wider = obs.to_vec();
+            wider.splice(at..at, extra.iter().copied());
+            grown.act(&wider, &mut b);
+            assert_eq!(a, b, "inputs {extra:?} inserted at {at} changed the action");
+        }
+        // The statistics moved with their inputs: old input j is now at j or j + 2.
+        for j in 0..4 {
+            let k = if j < at { j } else { j + 2 };
+            assert_eq!(grown.obs_rms.mean[k], old.obs_rms.mean[j], "input {j} inserted at {at}");
+        }
+    }
+    assert!(old.with_inputs_at(5, 1).expect_err("past the end").contains("takes 4"));
+}

@@ -591,6 +591,13 @@ impl Task for ImitationTask {
             }
             _ => [0.0; 3],
         };
+        // A delivered state (recorded by a meta-controller) meets the seat where it stood.
+        if let (Some((state, _)), Some((_, [sx, sy, syaw]))) = (from_pool, settings.seat)
+            && let Some([wx, wy, wyaw]) = state.seat_in_world(x, y, heading)
+        {
+            let [ex, ey] = self.to_world([sx, sy]);
+            self.seat_offset = [wx - ex, wy - ey, wrap_angle(wyaw - syaw - self.yaw)];
+        }
         self.place_seat(world);
         if let (Some((prop, _)), Goal::Seat { clear_start: true, .. }) = (settings.seat, &settings.goal) {
             self.separate_from_seat(world, prop);

@@ -4,6 +4,8 @@
 use std::path::Path;
 
 use repertoire_scenes::World;
+use repertoire_scenes::math::wrap_angle;
+use repertoire_scenes::world::PropPlacement;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Result, SkillError};
@@ -29,6 +31,13 @@ pub struct PoolState {
     /// like the meta-controller starting mid-walk, knows where in the clip it is).
     #[serde(default)]
     pub phase: usize,
+    /// Where the seat stood when the state was recorded, in the state's heading frame: metres
+    /// ahead of and to the left of the root, and its yaw relative to the heading. States a
+    /// meta-controller delivered (`repertoire meta deliver`) carry it, and a sit fine-tuned from
+    /// them meets the chair where the controller left it; predecessors' end poses do not, and
+    /// the chair stands where the clip expects it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub seat: Option<[f64; 3]>,
 }
 
 impl PoolState {
@@ -47,7 +56,29 @@ impl PoolState {
             joints: idx.joints.iter().map(|j| q[j.qpos]).collect(),
             joint_vel: idx.joints.iter().map(|j| v[j.dof]).collect(),
             phase: 0,
+            seat: None,
         }
+    }
+
+    /// [`PoolState::capture`] with the pose of the seat (its placement) kept in the state's
+    /// heading frame.
+    pub fn capture_with_seat(world: &World, seat: &PropPlacement) -> Self {
+        let mut state = Self::capture(world);
+        let r = world.model().index.root_qpos;
+        let q = world.data().qpos();
+        let yaw = yaw_of([q[r + 3], q[r + 4], q[r + 5], q[r + 6]]);
+        let d = to_heading(yaw, [seat.pos[0] - q[r], seat.pos[1] - q[r + 1], 0.0]);
+        state.seat = Some([d[0], d[1], wrap_angle(seat.yaw - yaw)]);
+        state
+    }
+
+    /// Where this state's recorded seat stands in the world, `(x, y, yaw)`, once the state is
+    /// applied at `(x, y)` facing `yaw` (see [`PoolState::seat`]).
+    pub fn seat_in_world(&self, x: f64, y: f64, yaw: f64) -> Option<[f64; 3]> {
+        self.seat.map(|[dx, dy, dyaw]| {
+            let (s, c) = yaw.sin_cos();
+            [x + c * dx - s * dy, y + s * dx + c * dy, wrap_angle(yaw + dyaw)]
+        })
     }
 
     /// Puts the character in this state at `(x, y)` facing `yaw`.
@@ -91,7 +122,12 @@ impl Pool {
             std::fs::read_to_string(path).map_err(|e| SkillError::io(path, "cannot read the end-pose pool", e))?;
         let pool: Pool = ron::from_str(&text).map_err(|e| SkillError::ron(path, e))?;
         if let Some(k) = pool.states.iter().position(|s| {
-            let all = [s.height].into_iter().chain(s.quat).chain(s.velocity).chain(s.angular);
+            let all = [s.height]
+                .into_iter()
+                .chain(s.quat)
+                .chain(s.velocity)
+                .chain(s.angular)
+                .chain(s.seat.into_iter().flatten());
             all.chain(s.joints.iter().copied()).chain(s.joint_vel.iter().copied()).any(|x| !x.is_finite())
         }) {
             return Err(SkillError::Invalid(format!("{}: state {k} holds a NaN or infinite value", path.display())));

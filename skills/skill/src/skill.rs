@@ -53,9 +53,20 @@ pub fn load_clip(path: &Path, map: Option<&Path>, body: &ClipBody) -> Result<Cli
     Ok(report.clip)
 }
 
+/// The pool file a name in [`Init::Pools`] stands for: a name ending in `.ron` is a pool file
+/// itself (states a meta-controller delivered, `repertoire meta deliver`); any other names a
+/// skill, whose successful end poses are `library/<skill>/end_poses.ron`.
+pub fn pool_path(library: &Path, name: &str) -> std::path::PathBuf {
+    if name.ends_with(".ron") {
+        std::path::PathBuf::from(name)
+    } else {
+        crate::library::skill_dir(library, name).join("end_poses.ron")
+    }
+}
+
 impl SkillSetup {
     /// Builds the skill of `spec`; predecessor pools (for [`Init::Pools`]) are read from
-    /// `library/<skill>/end_poses.ron`.
+    /// [`pool_path`].
     pub fn new(spec: SpecFile, library: &Path) -> Result<Self> {
         let s = &spec.spec;
         let scenario = match s.scene.as_str() {
@@ -128,10 +139,15 @@ impl SkillSetup {
         let mut pools = Vec::new();
         if let Init::Pools { from, .. } = &s.init {
             for name in from {
-                let path = crate::library::skill_dir(library, name).join("end_poses.ron");
+                let path = pool_path(library, name);
                 if !path.exists() {
+                    let how = if name.ends_with(".ron") {
+                        "write it with `repertoire meta deliver`".to_string()
+                    } else {
+                        format!("run `repertoire skill eval {name}` first")
+                    };
                     return Err(SkillError::Invalid(format!(
-                        "{}: init Pools needs {}; run `repertoire skill eval {name}` first",
+                        "{}: init Pools needs {}; {how}",
                         spec.path.display(),
                         path.display()
                     )));
@@ -165,6 +181,18 @@ impl SkillSetup {
             object,
         });
         Ok(SkillSetup { spec, model, body, layout, settings, clip, max_steps: max_steps.max(1) })
+    }
+
+    /// Where the seat stands, for a sit skill, when an episode starts from a pool state (at the
+    /// clip's first frame), in the character's heading frame: metres ahead, metres to the left,
+    /// yaw relative to the heading; `None` for skills without a seat goal. A meta-controller's
+    /// deliveries ([`PoolState::seat`](crate::pool::PoolState::seat)) are measured against it.
+    pub fn seat_at_start(&self) -> Option<[f64; 3]> {
+        let (_, [sx, sy, syaw]) = self.settings.seat?;
+        let r = &self.settings.reference;
+        let (p, h) = (r.root_pos[0], r.heading[0]);
+        let d = crate::reference::to_heading(h, [sx - p[0], sy - p[1], 0.0]);
+        Some([d[0], d[1], repertoire_scenes::math::wrap_angle(syaw - h)])
     }
 
     /// One environment.

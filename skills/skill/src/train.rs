@@ -11,7 +11,7 @@ use repertoire_learn::ppo::{IterationMetrics, Ppo};
 use repertoire_learn::run_dir::{RunDir, git_hash};
 
 use crate::error::{Result, SkillError};
-use crate::library::{self, LIBRARY_FORMAT, SkillManifest, Stage, TrainingFigures};
+use crate::library::{self, LIBRARY_FORMAT, LibrarySkill, SkillManifest, Stage, TrainingFigures};
 use crate::skill::{SkillEnv, SkillSetup};
 
 /// Options of one training run.
@@ -31,6 +31,10 @@ pub struct TrainOptions {
     pub resume: Option<PathBuf>,
     /// Start from the library's policy of this skill (transition fine-tuning).
     pub init_from_library: bool,
+    /// With `init_from_library`, start from this library skill instead of the spec's own
+    /// name: a new skill grown from one it extends (carry from walk). Its observation features
+    /// must begin the spec's; the values the spec adds enter with zero weight.
+    pub prior_skill: Option<String>,
     /// Write a checkpoint every this many iterations (0: only at the end).
     pub checkpoint_every: usize,
     /// Step environments sequentially (deterministic timing-independent mode; results are
@@ -55,6 +59,7 @@ impl TrainOptions {
             seed: Some(seed),
             resume: None,
             init_from_library: false,
+            prior_skill: None,
             checkpoint_every: 0,
             serial: false,
             progress: false,
@@ -94,7 +99,7 @@ fn ppo_for(setup: &SkillSetup, opts: &TrainOptions) -> Result<(Ppo<SkillEnv>, Ve
     // one of its own checkpoints: the library still holds that skill until the fine-tune ends).
     let mut lineage = Vec::new();
     let prior = if opts.init_from_library {
-        let name = &setup.spec.spec.name;
+        let name = opts.prior_skill.as_deref().unwrap_or(&setup.spec.spec.name);
         let prior = library::load(&opts.library, name)?;
         prior.check_fits(&setup.model)?;
         lineage = prior.manifest.lineage.clone();
@@ -109,25 +114,49 @@ fn ppo_for(setup: &SkillSetup, opts: &TrainOptions) -> Result<(Ppo<SkillEnv>, Ve
     let n = cfg.num_envs;
     let mut ppo = Ppo::new(cfg, setup.envs(n));
     if let Some(prior) = prior {
-        let name = &setup.spec.spec.name;
-        // A next training stage may observe more than the last (walk's target after its stage
-        // one): the old policy, widened with zero weights for the new values, starts it.
-        let wanted = ppo.obs_rms.dim();
-        let policy = if prior.policy.obs_dim() < wanted {
-            tracing::info!(skill = %name, from = prior.policy.obs_dim(), to = wanted, "widening the policy's input");
-            prior.policy.widened(wanted).map_err(|m| SkillError::Mismatch {
-                path: prior.dir.join("policy.safetensors"),
-                message: format!("cannot continue `{name}` from it: {m}"),
-            })?
-        } else {
-            prior.policy.clone()
-        };
+        let policy = grown_prior(setup, &prior, ppo.obs_rms.dim())?;
         policy.load_into(&mut ppo).map_err(|m| SkillError::Mismatch {
             path: prior.dir.join("policy.safetensors"),
-            message: format!("cannot fine-tune `{name}` from it: {m}"),
+            message: format!("cannot fine-tune `{}` from it: {m}", setup.spec.spec.name),
         })?;
     }
     Ok((ppo, lineage))
+}
+
+/// The library skill `prior`'s policy, grown to observe what `setup`'s spec observes
+/// (`wanted` values): a next training stage may observe more task values after the last (walk's
+/// target after its stage one), appended; a new skill grown from another may observe more
+/// features after the other's (carry sees the box walk never saw), inserted after the other's
+/// features and before the task values. Either enters with zero weights, so training starts
+/// from the old behaviour.
+pub fn grown_prior(setup: &SkillSetup, prior: &LibrarySkill, wanted: usize) -> Result<ActingPolicy> {
+    let name = &setup.spec.spec.name;
+    let path = prior.dir.join("policy.safetensors");
+    let mismatch = |message: String| SkillError::Mismatch { path: path.clone(), message };
+    let (old, new) = (&prior.manifest.observation, &setup.layout);
+    if new.features.len() < old.features.len() || new.features[..old.features.len()] != old.features[..] {
+        return Err(mismatch(format!(
+            "cannot grow `{name}` from `{}`: its features {:?} do not begin `{name}`'s {:?}",
+            prior.manifest.name, old.features, new.features
+        )));
+    }
+    let have = prior.policy.obs_dim();
+    let old_task = have.checked_sub(old.size).ok_or_else(|| mismatch("policy narrower than its layout".into()))?;
+    let new_task = wanted.saturating_sub(new.size);
+    if new_task < old_task || new.size < old.size {
+        return Err(mismatch(format!(
+            "cannot grow `{name}` ({wanted} inputs) from `{}` ({have}): it would lose inputs",
+            prior.manifest.name
+        )));
+    }
+    if wanted == have {
+        return Ok(prior.policy.clone());
+    }
+    tracing::info!(skill = %name, from = %prior.manifest.name, inputs = have, to = wanted, "growing the policy's input");
+    let grow = |p: &ActingPolicy| -> std::result::Result<ActingPolicy, String> {
+        p.with_inputs_at(old.size, new.size - old.size)?.widened(wanted)
+    };
+    grow(&prior.policy).map_err(|m| mismatch(format!("cannot continue `{name}` from it: {m}")))
 }
 
 /// Trains (or fine-tunes) the skill of `setup` and writes it to the library.

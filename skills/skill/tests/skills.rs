@@ -528,3 +528,108 @@ fn walk_stage_two_reaches_a_target_and_draws_the_next_one_ahead() {
     task.score(env.world(), f);
     assert_eq!(task.reached, 0);
 }
+
+#[test]
+fn a_delivered_state_meets_the_seat_where_the_controller_left_it() {
+    // States a meta-controller delivered (`meta deliver`) carry the seat's pose relative to the
+    // character; a sit started from them finds the chair there, wherever the episode spawns.
+    // Plain end poses carry none, and the chair stands where the clip expects it
+    // (`seat_at_start`).
+    let lib = temp("delivered");
+    let plain = setup("sit.ron", &lib);
+    let (prop, _) = plain.settings.seat.expect("sit has a seat");
+    let mut env = plain.env();
+    ImitationTask::new(plain.settings.clone()).place_at_frame(env.world_mut(), 0, 0.0, 0.0, 0.0);
+    let standing = PoolState::capture(env.world());
+    assert_eq!(standing.seat, None);
+    let recorded = [-0.62, 0.21, 0.35];
+    let delivered = PoolState { seat: Some(recorded), ..standing.clone() };
+    let body_hash = plain.model.body.content_hash();
+    let path = lib.join("delivered-sit.ron");
+    Pool { skill: "delivered:sit".into(), body_hash: body_hash.clone(), states: vec![delivered.clone()] }
+        .save(&path)
+        .expect("save");
+    assert_eq!(Pool::load(&path).expect("load").states[0].seat, Some(recorded), "the seat round-trips");
+    let ends = lib.join("stand");
+    std::fs::create_dir_all(&ends).unwrap();
+    Pool { skill: "stand".into(), body_hash, states: vec![standing.clone()] }
+        .save(&ends.join("end_poses.ron"))
+        .unwrap();
+
+    let seat_after_reset = |from: &str, jitter: bool, seed: u64| {
+        let mut spec = SpecFile::load(&specs().join("sit.ron")).unwrap();
+        spec.spec.init = repertoire_skill::spec::Init::pools(vec![from.to_string()]);
+        if !jitter && let Goal::Seat { jitter_m, jitter_deg, .. } = &mut spec.spec.goal {
+            (*jitter_m, *jitter_deg) = (0.0, 0.0);
+        }
+        let s = SkillSetup::new(spec, &lib).expect("a pool by path or by skill name");
+        let mut env = s.env();
+        let mut obs = vec![0.0; env.obs_dim()];
+        env.reset(&mut EnvRng::seed_from_u64(seed), &mut obs);
+        let got = PoolState::capture_with_seat(env.world(), &env.world().placements()[prop]);
+        for (a, b) in got.joints.iter().zip(&standing.joints) {
+            assert!((a - b).abs() < 1e-9, "the episode starts in the pool's state");
+        }
+        (got.seat.expect("captured with the seat"), s.seat_at_start().expect("sit has a seat"))
+    };
+    for seed in [1, 2, 3] {
+        // Jitter on: a delivered state's seat is taken as recorded, not jittered.
+        let (seat, _) = seat_after_reset(path.to_str().unwrap(), true, seed);
+        for k in 0..3 {
+            assert!((seat[k] - recorded[k]).abs() < 1e-9, "seed {seed}: seat {seat:?}, recorded {recorded:?}");
+        }
+        let (seat, expected) = seat_after_reset("stand", false, seed);
+        for k in 0..3 {
+            assert!((seat[k] - expected[k]).abs() < 1e-9, "seed {seed}: seat {seat:?}, clip expects {expected:?}");
+        }
+        assert!(expected[0] < -0.2, "the clip sits down backwards onto the seat: {expected:?}");
+    }
+    // A delivered file that is not there is named, with the command that writes one.
+    let mut spec = SpecFile::load(&specs().join("sit.ron")).unwrap();
+    spec.spec.init = repertoire_skill::spec::Init::pools(vec![lib.join("missing.ron").display().to_string()]);
+    let err = SkillSetup::new(spec, &lib).err().expect("a missing pool file").to_string();
+    assert!(err.contains("missing.ron") && err.contains("meta deliver"), "{err}");
+}
+
+#[test]
+fn a_skill_grown_from_another_acts_as_it_until_trained_and_keeps_its_lineage() {
+    // Carry from walk (`skill train carry.ron --warm-start-from walk`): carry observes walk's
+    // features and then the box; the grown policy ignores the box until training weighs it.
+    let lib = temp("grown");
+    let walk = setup("walk.ron", &lib);
+    train(&walk, &TrainOptions::quick(&lib, &lib.join("run-walk"), 1, 2, 1)).expect("train walk");
+    let prior = library::load(&lib, "walk").expect("walk in the library");
+    let carry = setup("carry.ron", &lib);
+    let wanted = carry.env().obs_dim();
+    let mut grown = repertoire_skill::train::grown_prior(&carry, &prior, wanted).expect("carry grows from walk");
+    let (features, box_values) = (prior.manifest.observation.size, carry.layout.size - prior.manifest.observation.size);
+    assert!(box_values > 0 && grown.obs_dim() == wanted && wanted == prior.policy.obs_dim() + box_values);
+    let mut walk_policy = prior.policy.clone();
+    let mut a = vec![0.0; walk_policy.act_dim()];
+    let mut b = vec![0.0; walk_policy.act_dim()];
+    let mut env = walk.env();
+    let mut obs = vec![0.0; env.obs_dim()];
+    env.reset(&mut EnvRng::seed_from_u64(3), &mut obs);
+    walk_policy.act(&obs, &mut a);
+    for fill in [0.0f32, 3.0, -50.0] {
+        let mut wide = obs.clone();
+        wide.splice(features..features, std::iter::repeat_n(fill, box_values));
+        grown.act(&wide, &mut b);
+        assert_eq!(a, b, "box values {fill} changed walk's action");
+    }
+    let opts = TrainOptions {
+        init_from_library: true,
+        prior_skill: Some("walk".into()),
+        ..TrainOptions::quick(&lib, &lib.join("run-carry"), 1, 2, 1)
+    };
+    train(&carry, &opts).expect("train carry from walk");
+    let grown = library::load(&lib, "carry").expect("carry in the library");
+    let lineage: Vec<&str> = grown.manifest.lineage.iter().map(|s| s.command.as_str()).collect();
+    assert_eq!(lineage, [prior.manifest.command.as_str()], "carry's lineage starts with walk");
+
+    // A skill whose features do not begin with the prior's is refused, naming both.
+    let sit = setup("sit.ron", &lib);
+    let err = repertoire_skill::train::grown_prior(&sit, &grown, sit.env().obs_dim()).expect_err("sit from carry");
+    let err = err.to_string();
+    assert!(err.contains("`sit`") && err.contains("`carry`") && err.contains("policy.safetensors"), "{err}");
+}
