@@ -184,7 +184,6 @@ pub enum TaskState {
     Toss(TossJudge),
 }
 
-/// Distance from the pelvis to the seat's top centre.
 /// Whether the character sits on `seat`: the pelvis touches it and the pelvis heading is
 /// within `facing` radians of the way the chair faces (its +x). Falling forward onto the seat
 /// from the front, facing the backrest, touches it without sitting.
@@ -192,6 +191,7 @@ pub fn seated(world: &World, seat: usize, facing: f64) -> bool {
     world.contacts().pelvis_on_prop(seat) && wrap_angle(world.heading() - world.placements()[seat].yaw).abs() <= facing
 }
 
+/// Distance from the pelvis to the seat's top centre.
 fn seat_distance(world: &World, seat: usize) -> f64 {
     let p = world.pelvis_frame().pos;
     let pl = world.placements()[seat];
