@@ -12,9 +12,8 @@
 
 use std::sync::Arc;
 
-use rand::SeedableRng;
 use rayon::prelude::*;
-use repertoire_learn::env::{Env, EnvRng};
+use repertoire_learn::env::Env;
 use repertoire_scenes::math::wrap_angle;
 use repertoire_skill::pool::{Pool, PoolState};
 use serde::{Deserialize, Serialize};
@@ -96,11 +95,7 @@ pub fn deliver<'c>(
             names.join(", ")
         )));
     };
-    for z in zones {
-        if !setup.model.scenario.scenario.spawn.iter().any(|s| &s.name == z) {
-            return Err(MetaError::Invalid(format!("no spawn zone `{z}` in {}", setup.model.scenario.path.display())));
-        }
-    }
+    setup.check_zones(zones)?;
     let controller = controller.into();
     let mut counts = Counts::default();
     let mut kept = Vec::new();
@@ -111,8 +106,7 @@ pub fn deliver<'c>(
             .map(|i| {
                 let mut env = MetaEnv::new(Arc::clone(setup));
                 let mut ctl = controller.start(setup);
-                let mut rng = EnvRng::seed_from_u64(seed);
-                rng.set_stream((zi * trials + i) as u64 + 1);
+                let mut rng = crate::eval::trial_rng(seed, zi, trials, i);
                 let mut obs = vec![0.0; env.obs_dim()];
                 let mut act = vec![0.0; env.act_dim()];
                 let mut mask = vec![true; setup.skills.len()];

@@ -99,11 +99,7 @@ fn run_episode(setup: &Arc<MetaSetup>, cfg: PlannerConfig, seed: u64, stream: u6
 
 /// Runs the planner's episodes and fits a controller to them; writes it to `opts.out`.
 pub fn distill(setup: Arc<MetaSetup>, opts: &DistillOptions) -> Result<(MetaManifest, DistillFigures)> {
-    for z in &opts.zones {
-        if !setup.model.scenario.scenario.spawn.iter().any(|s| &s.name == z) {
-            return Err(MetaError::Invalid(format!("no spawn zone `{z}` in {}", setup.model.scenario.path.display())));
-        }
-    }
+    setup.check_zones(&opts.zones)?;
     let started = Instant::now();
     let mut episodes = Vec::new();
     for (zi, zone) in opts.zones.iter().enumerate() {

@@ -232,6 +232,11 @@ impl MetaSetup {
         })
     }
 
+    /// An error naming the first of `zones` the scenario does not declare.
+    pub fn check_zones(&self, zones: &[String]) -> Result<()> {
+        check_zones(&self.model, zones)
+    }
+
     /// Observation width of the meta-controller.
     pub fn obs_dim(&self) -> usize {
         self.layout.size + self.task.extra_dim() + self.skills.len() + 1
@@ -645,5 +650,13 @@ impl Env for MetaEnv {
             }
         }
         Ok(())
+    }
+}
+
+/// An error naming the first of `zones` that `model`'s scenario does not declare.
+pub fn check_zones(model: &WorldModel, zones: &[String]) -> Result<()> {
+    match zones.iter().find(|z| !model.scenario.scenario.spawn.iter().any(|s| &s.name == *z)) {
+        Some(z) => Err(MetaError::Invalid(format!("no spawn zone `{z}` in {}", model.scenario.path.display()))),
+        None => Ok(()),
     }
 }

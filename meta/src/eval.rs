@@ -127,11 +127,7 @@ pub fn evaluate<'c>(
     batch: usize,
     seed: u64,
 ) -> Result<MetaReport> {
-    for z in zones {
-        if !setup.model.scenario.scenario.spawn.iter().any(|s| &s.name == z) {
-            return Err(MetaError::Invalid(format!("no spawn zone `{z}` in {}", setup.model.scenario.path.display())));
-        }
-    }
+    setup.check_zones(zones)?;
     let controller = controller.into();
     let names: Vec<String> = setup.skills.iter().map(|s| s.name.clone()).collect();
     let mut all = Vec::new();
@@ -147,6 +143,14 @@ pub fn evaluate<'c>(
         all.extend(chunks.into_iter().flatten());
     }
     Ok(report(zones, names, all))
+}
+
+/// The seed stream of trial `i` of the `zi`-th zone of an evaluation with `trials` per zone:
+/// the same trial starts the same way in every tool that plays it.
+pub(crate) fn trial_rng(seed: u64, zi: usize, trials: usize, i: usize) -> EnvRng {
+    let mut rng = EnvRng::seed_from_u64(seed);
+    rng.set_stream((zi * trials + i) as u64 + 1);
+    rng
 }
 
 /// Runs trial `i` of zone `zone` (the `zi`-th of the evaluation's zones, `trials` per zone),
@@ -168,8 +172,7 @@ fn run_trial(
         env.record_episodes(format!("meta-controller, zone {zone}, trial {i} (seed {seed})"));
     }
     let mut ctl = controller.start(setup);
-    let mut rng = EnvRng::seed_from_u64(seed);
-    rng.set_stream((zi * trials + i) as u64 + 1);
+    let mut rng = trial_rng(seed, zi, trials, i);
     let mut obs = vec![0.0; env.obs_dim()];
     let mut act = vec![0.0; env.act_dim()];
     let mut mask = vec![true; names.len()];

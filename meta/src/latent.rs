@@ -513,7 +513,6 @@ pub fn evaluate(
     batch: usize,
     seed: u64,
 ) -> Result<MetaReport> {
-    use rand::SeedableRng;
     if !matches!(setup.task, TaskSpec::Sit { .. }) {
         return Err(MetaError::Invalid(format!(
             "{}: the latent high level is evaluated on sitting only (this is a {} scenario)",
@@ -521,11 +520,7 @@ pub fn evaluate(
             setup.task.name()
         )));
     }
-    for z in zones {
-        if !setup.model.scenario.scenario.spawn.iter().any(|s| &s.name == z) {
-            return Err(MetaError::Invalid(format!("no spawn zone `{z}` in {}", setup.model.scenario.path.display())));
-        }
-    }
+    crate::env::check_zones(&setup.model, zones)?;
     let b = batch.clamp(1, trials.max(1));
     let mut envs = LatentMetaEnv::many(setup, b)?;
     let (od, ad) = (setup.obs_dim(), setup.latent_dim());
@@ -537,8 +532,7 @@ pub fn evaluate(
         let mut slot: Vec<Option<usize>> = vec![None; b];
         let mut next = 0usize;
         let start = |env: &mut LatentMetaEnv, o: &mut [f32], i: usize| {
-            let mut rng = EnvRng::seed_from_u64(seed);
-            rng.set_stream((zi * trials + i) as u64 + 1);
+            let mut rng = crate::eval::trial_rng(seed, zi, trials, i);
             env.reset(&mut rng, o);
         };
         for (k, env) in envs.iter_mut().enumerate() {

@@ -47,7 +47,7 @@ impl PoolState {
         let (q, v) = (world.data().qpos(), world.data().qvel());
         let (r, d) = (idx.root_qpos, idx.root_dof);
         let quat = [q[r + 3], q[r + 4], q[r + 5], q[r + 6]];
-        let yaw = yaw_of(quat);
+        let (_, yaw) = root_position_and_yaw(world);
         PoolState {
             height: q[r + 2],
             quat: mul(yaw_quat(-yaw), quat),
@@ -64,10 +64,8 @@ impl PoolState {
     /// heading frame.
     pub fn capture_with_seat(world: &World, seat: &PropPlacement) -> Self {
         let mut state = Self::capture(world);
-        let r = world.model().index.root_qpos;
-        let q = world.data().qpos();
-        let yaw = yaw_of([q[r + 3], q[r + 4], q[r + 5], q[r + 6]]);
-        let d = to_heading(yaw, [seat.pos[0] - q[r], seat.pos[1] - q[r + 1], 0.0]);
+        let ([x, y], yaw) = root_position_and_yaw(world);
+        let d = to_heading(yaw, [seat.pos[0] - x, seat.pos[1] - y, 0.0]);
         state.seat = Some([d[0], d[1], wrap_angle(seat.yaw - yaw)]);
         state
     }
@@ -102,6 +100,13 @@ impl PoolState {
         }
         Ok(())
     }
+}
+
+/// The root's ground position and heading (the yaw of its orientation).
+fn root_position_and_yaw(world: &World) -> ([f64; 2], f64) {
+    let r = world.model().index.root_qpos;
+    let q = world.data().qpos();
+    ([q[r], q[r + 1]], yaw_of([q[r + 3], q[r + 4], q[r + 5], q[r + 6]]))
 }
 
 /// The end states of one skill.
