@@ -78,6 +78,12 @@ fn train_eval_and_finetune_a_chain() {
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("end_poses.ron") && err.contains("skill eval sit"), "{err}");
+
+    // Raising the spread of a policy there is none to start from is refused, not ignored.
+    let out = repertoire(&["skill", "train", walk.to_str().unwrap(), "--explore-log-std", "-2", "--library", lib]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--explore-log-std") && err.contains("--warm-start"), "{err}");
 }
 
 #[test]

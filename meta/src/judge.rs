@@ -2,7 +2,7 @@
 //!
 //! Success (Chao et al.): the character sits continuously for `hold_s` seconds; any control
 //! tick not seated restarts the count. Seated is the pelvis on the seat, facing within the
-//! scenario's `facing_deg` of the chair's front ([`crate::task::seated`]; 180° is the paper's
+//! scenario's `facing_deg` of the chair's front (`World::seated_on`; 180° is the paper's
 //! literal pelvis–seat contact). The judge also keeps the trial's minimum
 //! pelvis-to-seat-centre distance.
 

@@ -4,7 +4,6 @@
 //! a [`TaskState`] for its current episode. Sitting, the warehouse and the toss are the three.
 
 use rand::Rng;
-use repertoire_scenes::math::wrap_angle;
 use repertoire_scenes::scenario::{Task as ScenarioTask, WarehousePhase};
 use repertoire_scenes::{Feature, World, WorldModel};
 use repertoire_skill::reference::to_heading;
@@ -31,7 +30,7 @@ const PUTDOWN_START_M: f64 = 0.55;
 pub enum TaskSpec {
     /// Sit on a chair: 1 per decision seated, else `0.5·(−V_sit)`; success after `hold_s`
     /// seconds seated without a break. Seated: the pelvis on the seat, heading within `facing`
-    /// of the chair's front ([`seated`]).
+    /// of the chair's front ([`World::seated_on`]).
     Sit {
         /// The chair (prop index).
         seat: usize,
@@ -184,13 +183,6 @@ pub enum TaskState {
     Toss(TossJudge),
 }
 
-/// Whether the character sits on `seat`: the pelvis touches it and the pelvis heading is
-/// within `facing` radians of the way the chair faces (its +x). Falling forward onto the seat
-/// from the front, facing the backrest, touches it without sitting.
-pub fn seated(world: &World, seat: usize, facing: f64) -> bool {
-    world.contacts().pelvis_on_prop(seat) && wrap_angle(world.heading() - world.placements()[seat].yaw).abs() <= facing
-}
-
 /// Distance from the pelvis to the seat's top centre.
 fn seat_distance(world: &World, seat: usize) -> f64 {
     let p = world.pelvis_frame().pos;
@@ -282,7 +274,7 @@ impl TaskState {
     pub fn tick(&mut self, spec: &TaskSpec, world: &World, dt: f64) -> bool {
         match (spec, self) {
             (TaskSpec::Sit { seat, facing, .. }, TaskState::Sit { judge, .. }) => {
-                judge.tick(seated(world, *seat, *facing), seat_distance(world, *seat));
+                judge.tick(world.seated_on(*seat, *facing), seat_distance(world, *seat));
                 false
             }
             (TaskSpec::Warehouse(w), TaskState::Warehouse(judge)) => {
@@ -322,7 +314,7 @@ impl TaskState {
         match (spec, self) {
             (TaskSpec::Sit { seat, facing, .. }, TaskState::Sit { last_distance, .. }) => {
                 let d = seat_distance(world, *seat);
-                let on_seat = seated(world, *seat, *facing);
+                let on_seat = world.seated_on(*seat, *facing);
                 let reward = if fell {
                     0.0
                 } else if on_seat {
@@ -387,7 +379,7 @@ impl TaskState {
         match (spec, self) {
             (TaskSpec::Sit { seat, facing, .. }, TaskState::Sit { judge, .. }) => [
                 seat_distance(world, *seat) as f32,
-                f32::from(u8::from(seated(world, *seat, *facing))),
+                f32::from(u8::from(world.seated_on(*seat, *facing))),
                 (f64::from(judge.streak()) * control_dt) as f32,
                 judge.min_distance as f32,
             ],

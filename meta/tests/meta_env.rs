@@ -426,7 +426,6 @@ fn seated_means_on_the_seat_facing_the_chairs_front_not_any_contact() {
     // facing the way the chair faces. The same contact with the chair turned round (the
     // character now faces its backrest, as after falling forward onto the seat) is contact,
     // but not sitting, unless the scenario counts any contact (`facing_deg: 180`).
-    use repertoire_meta::task::seated;
     use repertoire_skill::imitation::ImitationTask;
     let specs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../skills/skill/specs");
     let s = SkillSetup::new(SpecFile::load(&specs.join("sit.ron")).expect("spec"), library()).expect("sit");
@@ -442,10 +441,10 @@ fn seated_means_on_the_seat_facing_the_chairs_front_not_any_contact() {
     }
     assert!(sat && world.contacts().pelvis_on_prop(chair), "the open-loop clip ends seated");
     let sixty = 60f64.to_radians();
-    assert!(seated(world, chair, sixty), "seated facing the chair's front");
+    assert!(world.seated_on(chair, sixty), "seated facing the chair's front");
     let pl = world.placements()[chair];
     world.move_prop(chair, pl.pos[0], pl.pos[1], pl.yaw + std::f64::consts::PI).expect("turn the chair");
     assert!(world.contacts().pelvis_on_prop(chair), "still touching the (symmetric) seat");
-    assert!(!seated(world, chair, sixty), "facing the backrest is not sitting");
-    assert!(seated(world, chair, std::f64::consts::PI), "facing_deg 180 counts any contact");
+    assert!(!world.seated_on(chair, sixty), "facing the backrest is not sitting");
+    assert!(world.seated_on(chair, std::f64::consts::PI), "facing_deg 180 counts any contact");
 }

@@ -12,6 +12,10 @@ use serde::{Deserialize, Serialize};
 use std::collections::{BTreeMap, HashSet};
 use std::path::{Path, PathBuf};
 
+/// How far (degrees) the pelvis heading may be from the chair's front for a pelvis on the seat
+/// to count as seated: the sit task's default `facing_deg`, and `skill eval`'s test for a sit.
+pub const SEATED_FACING_DEG: f64 = 60.0;
+
 /// The skills the project knows how to train; a scenario may list only these.
 pub const KNOWN_SKILLS: &[&str] = &["walk", "turn_left", "turn_right", "sit", "lift", "carry", "put_down", "catch"];
 
@@ -619,7 +623,7 @@ impl Task {
         20.0
     }
     fn default_facing() -> f64 {
-        60.0
+        SEATED_FACING_DEG
     }
 
     /// Episode length in seconds.

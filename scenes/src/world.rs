@@ -742,6 +742,13 @@ impl World {
         self.pelvis_frame().yaw()
     }
 
+    /// Whether the character sits on prop `seat`: the pelvis touches it and the pelvis heading
+    /// is within `facing` radians of the way the prop faces (its +x). Falling forward onto a
+    /// seat from the front, facing the backrest, touches it without sitting.
+    pub fn seated_on(&self, seat: usize, facing: f64) -> bool {
+        self.contacts().pelvis_on_prop(seat) && wrap_angle(self.heading() - self.placements()[seat].yaw).abs() <= facing
+    }
+
     /// Pelvis pitch and roll in radians (Z-Y-X Euler angles).
     pub fn pitch_roll(&self) -> (f64, f64) {
         let f = self.pelvis_frame();

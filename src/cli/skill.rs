@@ -120,6 +120,11 @@ pub struct TrainArgs {
     /// Parallel environments (default: the spec's).
     #[arg(long)]
     envs: Option<usize>,
+    /// Starting from a library skill, raise its policy's log standard deviation to at least
+    /// this (per action dimension), so a stage that must learn something new (walk stage 2's
+    /// steering) explores more than the converged stage before it did.
+    #[arg(long, allow_hyphen_values = true)]
+    explore_log_std: Option<f32>,
     /// Seed (default: the spec's).
     #[arg(long)]
     seed: Option<u64>,
@@ -168,6 +173,11 @@ fn train_cmd(
     a: TrainArgs,
     command: String,
 ) -> Result<()> {
+    if a.explore_log_std.is_some() && prior.is_none() {
+        bail!(
+            "--explore-log-std raises a library skill's spread: use it with --warm-start, --warm-start-from or finetune"
+        );
+    }
     let mut spec = SpecFile::load(spec_path)?;
     if let Some((from, fraction, speed)) = finetune {
         spec.spec.init = Init::Pools { from, fraction, speed };
@@ -193,6 +203,7 @@ fn train_cmd(
         resume: a.resume,
         init_from_library: prior.is_some(),
         prior_skill: prior.flatten(),
+        explore_log_std: a.explore_log_std,
         checkpoint_every: a.checkpoint_every,
         serial: a.serial,
         progress: true,

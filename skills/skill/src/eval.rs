@@ -7,6 +7,7 @@ use std::sync::Arc;
 use rayon::prelude::*;
 use repertoire_humanoid::HumanoidEnv;
 use repertoire_learn::env::{Env, EnvRng};
+use repertoire_scenes::SEATED_FACING_DEG;
 use serde::{Deserialize, Serialize};
 
 use rand::{Rng, SeedableRng};
@@ -37,7 +38,8 @@ pub struct EvalReport {
     /// Trials run.
     pub trials: usize,
     /// Trials that reached the end of the clip (or the time limit) without falling and, for
-    /// sit, with the pelvis on the seat; for object goals, with the object's state reached
+    /// sit, seated (the pelvis on the seat, its heading within `SEATED_FACING_DEG` of the
+    /// chair's front, not fallen onto it facing the backrest); for object goals, with the object's state reached
     /// (box raised, held, put down and released, ball caught).
     pub successes: usize,
     /// Trials that ended in a fall (or, for object goals, with the object on the floor).
@@ -192,11 +194,13 @@ pub fn evaluate(
                 continue;
             }
             let len = env.steps();
-            let on_seat = out.terms[5] > 0.5;
+            let seated = settings
+                .seat
+                .is_some_and(|(p, _)| out.terms[5] > 0.5 && env.world().seated_on(p, SEATED_FACING_DEG.to_radians()));
             let object_done = out.terms[6] > 0.5;
             let success = !out.terminated
                 && match settings.goal {
-                    Goal::Seat { .. } => on_seat,
+                    Goal::Seat { .. } => seated,
                     _ if settings.goal.object().is_some() => object_done,
                     _ => true,
                 };

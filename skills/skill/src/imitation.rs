@@ -82,9 +82,12 @@ pub struct ImitationTask {
     /// Goal state: the target (world xy) and the last distance to it or to the seat.
     target: [f64; 2],
     last_distance: f64,
+    /// Steps since the current target was drawn or set (`Goal::Target::retarget_s`).
+    target_steps: usize,
     /// This episode's chair offset from the clip's seat (world x, y, yaw).
     seat_offset: [f64; 3],
-    /// Draws the next target after an arrival (`Goal::Target::reach_m`), seeded at reset.
+    /// Draws the next target after an arrival (`Goal::Target::reach_m`) or a timeout
+    /// (`retarget_s`), seeded at reset.
     target_rng: EnvRng,
     /// Targets reached this episode.
     pub reached: u32,
@@ -107,6 +110,7 @@ impl ImitationTask {
             start_frame: 0,
             target: [0.0; 2],
             last_distance: 0.0,
+            target_steps: 0,
             seat_offset: [0.0; 3],
             target_rng: EnvRng::seed_from_u64(0),
             reached: 0,
@@ -122,6 +126,7 @@ impl ImitationTask {
     /// Moves the walking target (world xy), for tools and tests that set up a situation by hand.
     pub fn set_target(&mut self, target: [f64; 2], world: &World) {
         self.target = target;
+        self.target_steps = 0;
         self.last_distance = self.goal_distance(world);
     }
 
@@ -420,6 +425,14 @@ impl ImitationTask {
         let contacts = world.contacts();
         let on_seat = settings.seat.is_some_and(|(p, _)| contacts.pelvis_on_prop(p));
         let object = self.object_goal(world, &contacts, f);
+        if let Goal::Target { retarget_s, distance_m, azimuth_deg, .. } = &settings.goal {
+            self.target_steps += 1;
+            if *retarget_s > 0.0 && self.target_steps as f64 * r.dt >= *retarget_s {
+                let p = world.pelvis_frame().pos;
+                let next = draw_target(&mut self.target_rng, [p[0], p[1]], world.heading(), *distance_m, *azimuth_deg);
+                self.set_target(next, world);
+            }
+        }
         let goal = match &settings.goal {
             Goal::None => 0.0,
             Goal::RootVelocity { scale, .. } => {
@@ -442,20 +455,32 @@ impl ImitationTask {
                 self.target =
                     draw_target(&mut self.target_rng, [p[0], p[1]], world.heading(), *distance_m, *azimuth_deg);
                 self.last_distance = self.goal_distance(world);
+                self.target_steps = 0;
                 self.reached += 1;
                 1.0
             }
-            Goal::Target { speed_scale, .. } if *speed_scale > 0.0 => {
+            Goal::Target { speed_scale, facing_scale, .. } => {
                 let p = world.pelvis_frame().pos;
                 let (dx, dy) = (self.target[0] - p[0], self.target[1] - p[1]);
                 let norm = (dx * dx + dy * dy).sqrt().max(1e-9);
-                let d = world.root_dof_velocity();
-                let toward = (d[0] * dx + d[1] * dy) / norm;
-                let v_ref = (r.velocity[f][0].powi(2) + r.velocity[f][1].powi(2)).sqrt();
+                let approach = if *speed_scale > 0.0 {
+                    let d = world.root_dof_velocity();
+                    let toward = (d[0] * dx + d[1] * dy) / norm;
+                    let v_ref = (r.velocity[f][0].powi(2) + r.velocity[f][1].powi(2)).sqrt();
+                    similarity(*speed_scale, (v_ref - toward).max(0.0).powi(2))
+                } else {
+                    let speed = (norm - self.last_distance) / r.dt;
+                    (1.0 / (1.0 + (10.0 * speed).exp())) as f32
+                };
                 self.last_distance = norm;
-                similarity(*speed_scale, (v_ref - toward).max(0.0).powi(2))
+                if *facing_scale > 0.0 {
+                    let psi = wrap_angle(dy.atan2(dx) - world.heading());
+                    0.5 * approach + 0.5 * similarity(*facing_scale, psi * psi)
+                } else {
+                    approach
+                }
             }
-            Goal::Target { .. } | Goal::Seat { .. } => {
+            Goal::Seat { .. } => {
                 let d = self.goal_distance(world);
                 let speed = (d - self.last_distance) / r.dt;
                 self.last_distance = d;
@@ -608,9 +633,10 @@ impl Task for ImitationTask {
         self.start_frame = self.phase;
         self.start_heading = world.heading();
         self.reached = 0;
-        if let Goal::Target { distance_m, azimuth_deg, reach_m, .. } = settings.goal {
+        if let Goal::Target { distance_m, azimuth_deg, reach_m, retarget_s, .. } = settings.goal {
             self.target = draw_target(rng, [x, y], heading, distance_m, azimuth_deg);
-            if reach_m > 0.0 {
+            self.target_steps = 0;
+            if reach_m > 0.0 || retarget_s > 0.0 {
                 self.target_rng = EnvRng::seed_from_u64(rng.random());
             }
         }
@@ -656,12 +682,13 @@ impl Task for ImitationTask {
             self.target[1],
             self.last_distance,
             self.held as f64,
+            self.target_steps as f64,
         ]);
     }
 
     fn restore(&mut self, s: &[f64]) -> Result<(), String> {
-        if s.len() != 13 {
-            return Err(format!("imitation task snapshot has {} values, expected 13", s.len()));
+        if s.len() != 14 {
+            return Err(format!("imitation task snapshot has {} values, expected 14", s.len()));
         }
         self.phase = s[0] as usize;
         self.cycles = s[1] as usize;
@@ -673,6 +700,7 @@ impl Task for ImitationTask {
         self.target = [s[9], s[10]];
         self.last_distance = s[11];
         self.held = s[12] as usize;
+        self.target_steps = s[13] as usize;
         if self.phase >= self.settings.reference.frames() {
             return Err(format!("phase {} is past the clip's {} frames", self.phase, self.settings.reference.frames()));
         }

@@ -132,6 +132,18 @@ pub enum Goal {
         /// for any approach faster than about 0.3 m/s and so hardly for facing the target.
         #[serde(default)]
         speed_scale: f64,
+        /// Above 0, half the goal term (off arrival) is `exp(−facing_scale · ψ²)`, `ψ` the angle
+        /// between the pelvis heading and the direction to the target, the other half the term
+        /// above. Walking straight on at the clip's pace, the speed term's error grows as
+        /// `v²(1 − cos ψ)² ≈ v²ψ⁴/4`, flat for small misses; the facing term's as `ψ²`.
+        #[serde(default)]
+        facing_scale: f64,
+        /// Above 0, a target not reached within this many seconds is replaced by a new one
+        /// drawn the same way around the current heading (no pay): a walker that missed its
+        /// target keeps getting ones it can still reach instead of one behind it for the rest
+        /// of the episode. 0: only arrivals draw new targets.
+        #[serde(default)]
+        retarget_s: f64,
     },
     /// Sit: the chair `prop` is placed under the clip's seated pelvis; reward
     /// `weight / (1 + exp(10 · V))` with `V` the rate of change of the pelvis–seat-centre

@@ -35,6 +35,9 @@ pub struct TrainOptions {
     /// name: a new skill grown from one it extends (carry from walk). Its observation features
     /// must begin the spec's; the values the spec adds enter with zero weight.
     pub prior_skill: Option<String>,
+    /// With `init_from_library`, raise the prior policy's log standard deviation to at least
+    /// this per action dimension (more exploration for a stage that learns something new).
+    pub explore_log_std: Option<f32>,
     /// Write a checkpoint every this many iterations (0: only at the end).
     pub checkpoint_every: usize,
     /// Step environments sequentially (deterministic timing-independent mode; results are
@@ -60,6 +63,7 @@ impl TrainOptions {
             resume: None,
             init_from_library: false,
             prior_skill: None,
+            explore_log_std: None,
             checkpoint_every: 0,
             serial: false,
             progress: false,
@@ -114,7 +118,10 @@ fn ppo_for(setup: &SkillSetup, opts: &TrainOptions) -> Result<(Ppo<SkillEnv>, Ve
     let n = cfg.num_envs;
     let mut ppo = Ppo::new(cfg, setup.envs(n));
     if let Some(prior) = prior {
-        let policy = grown_prior(setup, &prior, ppo.obs_rms.dim())?;
+        let mut policy = grown_prior(setup, &prior, ppo.obs_rms.dim())?;
+        if let Some(floor) = opts.explore_log_std {
+            policy.log_std.iter_mut().for_each(|l| *l = l.max(floor));
+        }
         policy.load_into(&mut ppo).map_err(|m| SkillError::Mismatch {
             path: prior.dir.join("policy.safetensors"),
             message: format!("cannot fine-tune `{}` from it: {m}", setup.spec.spec.name),

@@ -31,6 +31,22 @@ fn setup(spec: &str, library: &Path) -> SkillSetup {
 }
 
 #[test]
+fn every_shipped_spec_builds() {
+    // Experiments and variants sit beside the library's specs; none may rot.
+    let mut built = Vec::new();
+    for entry in std::fs::read_dir(specs()).unwrap() {
+        let path = entry.unwrap().path();
+        let text = std::fs::read_to_string(&path).unwrap_or_default();
+        if path.extension().is_some_and(|e| e == "ron") && text.contains("SkillSpec(") {
+            let spec = SpecFile::load(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            SkillSetup::new(spec, &temp("every-spec")).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            built.push(path.file_name().unwrap().to_string_lossy().into_owned());
+        }
+    }
+    assert!(built.len() >= 10 && built.iter().any(|n| n == "walk_facing.ron"), "{built:?}");
+}
+
+#[test]
 fn replaying_the_clip_scores_the_maximum_and_diverging_scores_less() {
     for spec in ["walk.ron", "turn_left.ron", "turn_right.ron", "sit.ron", "sit_mocap.ron"] {
         let s = setup(spec, &temp("replay"));
@@ -514,6 +530,31 @@ fn walk_stage_two_reaches_a_target_and_draws_the_next_one_ahead() {
     task.set_target(at(std::f64::consts::PI), env.world());
     let behind = task.score(env.world(), f).terms[4];
     assert!(ahead > 0.8 && side < 0.2 && behind < side, "ahead {ahead}, side {side}, behind {behind}");
+    // The facing term (`facing_scale`) adds half of `1 − exp(−2ψ²)` to the drop at 30° off.
+    let off30 = 30f64.to_radians();
+    task.set_target(at(off30), env.world());
+    let speed_30 = task.score(env.world(), f).terms[4];
+    let mut spec = SpecFile::load(&specs().join("walk_stage2.ron")).unwrap();
+    if let Goal::Target { facing_scale, .. } = &mut spec.spec.goal {
+        *facing_scale = 2.0;
+    }
+    let facing = SkillSetup::new(spec, &temp("walk-target-facing")).unwrap();
+    let mut task_f = ImitationTask::new(facing.settings.clone());
+    task_f.reset(env.world_mut(), &mut rng);
+    task_f.place_at_frame(env.world_mut(), f, 2.0, -1.0, heading);
+    task_f.set_target(at(0.0), env.world());
+    let facing_ahead = task_f.score(env.world(), f).terms[4];
+    task_f.set_target(at(off30), env.world());
+    let facing_30 = task_f.score(env.world(), f).terms[4];
+    let psi_term = 0.5 * (-2.0 * off30 * off30).exp() as f32;
+    assert!(
+        (facing_ahead - facing_30 - (0.5 * (ahead - speed_30) + 0.5 - psi_term)).abs() < 0.02,
+        "facing term: ahead {facing_ahead}, 30° off {facing_30}"
+    );
+    assert!(
+        facing_ahead - facing_30 > ahead - speed_30,
+        "the facing term tells a 30° miss more: {facing_ahead} − {facing_30} against {ahead} − {speed_30}"
+    );
 
     // Without `reach_m` (one target per episode), standing on it is no arrival.
     let mut spec = SpecFile::load(&specs().join("walk_stage2.ron")).unwrap();
@@ -527,6 +568,30 @@ fn walk_stage_two_reaches_a_target_and_draws_the_next_one_ahead() {
     task.set_target([p[0] + 0.1, p[1]], env.world());
     task.score(env.world(), f);
     assert_eq!(task.reached, 0);
+
+    // With `retarget_s`, a target not reached in time is replaced (no pay, no arrival), in range.
+    let mut spec = SpecFile::load(&specs().join("walk_stage2.ron")).unwrap();
+    if let Goal::Target { retarget_s, .. } = &mut spec.spec.goal {
+        *retarget_s = 0.5;
+    }
+    let timed = SkillSetup::new(spec, &temp("walk-target-timed")).unwrap();
+    let dt = timed.settings.reference.dt;
+    let mut task = ImitationTask::new(timed.settings.clone());
+    task.reset(env.world_mut(), &mut rng);
+    task.place_at_frame(env.world_mut(), f, 2.0, -1.0, heading);
+    let far = [p[0] - 3.0, p[1] + 1.0];
+    task.set_target(far, env.world());
+    let due = (0.5 / dt).ceil() as usize;
+    for _ in 1..due {
+        task.score(env.world(), f);
+    }
+    assert_eq!(task.target(), far, "kept until {due} steps have passed");
+    task.score(env.world(), f);
+    let next = task.target();
+    assert_ne!(next, far, "replaced after {due} steps");
+    assert_eq!(task.reached, 0, "a timeout is no arrival");
+    let d = dist(next, p);
+    assert!(d >= distance_m.0 - 1e-9 && d <= distance_m.1 + 1e-9, "replacement {d} m away");
 }
 
 #[test]
@@ -617,13 +682,22 @@ fn a_skill_grown_from_another_acts_as_it_until_trained_and_keeps_its_lineage() {
         grown.act(&wide, &mut b);
         assert_eq!(a, b, "box values {fill} changed walk's action");
     }
+    // `--explore-log-std` raises the prior's spread to a floor (walk starts at the spec's -2).
+    let floor = -1.0;
+    assert!(prior.policy.log_std.iter().all(|&l| l < floor - 0.5), "{:?}", prior.policy.log_std);
     let opts = TrainOptions {
         init_from_library: true,
         prior_skill: Some("walk".into()),
+        explore_log_std: Some(floor),
         ..TrainOptions::quick(&lib, &lib.join("run-carry"), 1, 2, 1)
     };
     train(&carry, &opts).expect("train carry from walk");
     let grown = library::load(&lib, "carry").expect("carry in the library");
+    assert!(
+        grown.policy.log_std.iter().all(|&l| (l - floor).abs() < 0.05),
+        "one iteration from the floor: {:?}",
+        grown.policy.log_std
+    );
     let lineage: Vec<&str> = grown.manifest.lineage.iter().map(|s| s.command.as_str()).collect();
     assert_eq!(lineage, [prior.manifest.command.as_str()], "carry's lineage starts with walk");
 
