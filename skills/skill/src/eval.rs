@@ -39,8 +39,8 @@ pub struct EvalReport {
     pub trials: usize,
     /// Trials that reached the end of the clip (or the time limit) without falling and, for
     /// sit, seated (the pelvis on the seat, its heading within `SEATED_FACING_DEG` of the
-    /// chair's front, not fallen onto it facing the backrest); for object goals, with the object's state reached
-    /// (box raised, held, put down and released, ball caught).
+    /// chair's front, not fallen onto it facing the backrest); for object goals, with the
+    /// object's state reached (box raised, held, put down and released, ball caught).
     pub successes: usize,
     /// Trials that ended in a fall (or, for object goals, with the object on the floor).
     pub falls: usize,
@@ -194,9 +194,7 @@ pub fn evaluate(
                 continue;
             }
             let len = env.steps();
-            let seated = settings
-                .seat
-                .is_some_and(|(p, _)| out.terms[5] > 0.5 && env.world().seated_on(p, SEATED_FACING_DEG.to_radians()));
+            let seated = settings.seat.is_some_and(|(p, _)| env.world().seated_on(p, SEATED_FACING_DEG.to_radians()));
             let object_done = out.terms[6] > 0.5;
             let success = !out.terminated
                 && match settings.goal {

@@ -452,10 +452,8 @@ impl ImitationTask {
             {
                 // Arrived: a new target ahead, from the same ranges around the current heading.
                 let p = world.pelvis_frame().pos;
-                self.target =
-                    draw_target(&mut self.target_rng, [p[0], p[1]], world.heading(), *distance_m, *azimuth_deg);
-                self.last_distance = self.goal_distance(world);
-                self.target_steps = 0;
+                let next = draw_target(&mut self.target_rng, [p[0], p[1]], world.heading(), *distance_m, *azimuth_deg);
+                self.set_target(next, world);
                 self.reached += 1;
                 1.0
             }
