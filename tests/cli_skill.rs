@@ -110,16 +110,15 @@ fn meta_train_eval_and_the_main_job() {
             "0",
         ]));
     }
-    let meta = dir.join("meta");
-    let meta_s = meta.to_str().unwrap();
+    // Without --out the controller goes into the library it was trained over, and eval and run
+    // look for it there.
+    let meta = lib.join("meta");
     let run = dir.join("run-meta");
     let text = ok(&repertoire(&[
         "meta",
         "train",
         "--library",
         lib_s,
-        "--out",
-        meta_s,
         "--run-dir",
         run.to_str().unwrap(),
         "--iterations",
@@ -128,12 +127,12 @@ fn meta_train_eval_and_the_main_job() {
         "2",
     ]));
     assert!(text.contains("meta-controller written to"), "{text}");
-    let text =
-        ok(&repertoire(&["meta", "eval", "--library", lib_s, "--meta", meta_s, "--trials", "2", "--zones", "front"]));
+    assert!(meta.join("meta.ron").exists() && meta.join("meta.safetensors").exists(), "{text}");
+    let text = ok(&repertoire(&["meta", "eval", "--library", lib_s, "--trials", "2", "--zones", "front"]));
     assert!(text.contains("| front | 2 |") && text.contains("| all | 2 |"), "{text}");
     assert!(meta.join("eval/report.md").exists() && meta.join("eval/trials.csv").exists());
     // The main job runs the trained controller on the default scenario.
-    let text = ok(&repertoire(&["run", "--library", lib_s, "--meta", meta_s, "--trials", "1"]));
+    let text = ok(&repertoire(&["run", "--library", lib_s, "--trials", "1"]));
     assert!(text.contains("| front | 1 |") && text.contains("| behind | 1 |"), "{text}");
     // Without a controller it says how to get one.
     let text = ok(&repertoire(&["run", "--meta", dir.join("none").to_str().unwrap(), "--seconds", "0.5"]));

@@ -19,16 +19,22 @@ use repertoire_scenes::WorldModel;
 
 /// The committed skill library and meta-controller.
 pub const DEFAULT_LIBRARY: &str = "skills/library";
-/// Where the default meta-controller lives (inside the library).
-pub const DEFAULT_META: &str = "skills/library/meta";
 
-/// The meta-controller folder of a scenario when none is given: [`DEFAULT_META`] for sitting,
-/// `skills/library/meta-<scenario name>` for other tasks (so they never overwrite it).
-pub fn default_meta(setup: &MetaSetup) -> PathBuf {
-    match setup.task {
-        TaskSpec::Sit { .. } => PathBuf::from(DEFAULT_META),
-        _ => Path::new(DEFAULT_LIBRARY).join(format!("meta-{}", setup.model.scenario.scenario.name)),
+/// The meta-controller folder of a scenario when none is given, inside the skill library it
+/// runs over: `LIBRARY/meta` for sitting (the committed `skills/library/meta`),
+/// `LIBRARY/meta-<scenario name>` for other tasks (so they never overwrite it). A controller
+/// trained over a copy of the library stays with that copy.
+pub fn default_meta(library: &Path, task: &repertoire_scenes::scenario::Task, name: &str) -> PathBuf {
+    match task {
+        repertoire_scenes::scenario::Task::Sit { .. } => library.join("meta"),
+        _ => library.join(format!("meta-{name}")),
     }
+}
+
+/// [`default_meta`] of a loaded setup.
+fn setup_meta(library: &Path, setup: &MetaSetup) -> PathBuf {
+    let s = &setup.model.scenario.scenario;
+    default_meta(library, &s.task, &s.name)
 }
 
 /// The search-based planner's settings (`meta eval --planner`, `meta distill`, `meta deliver
@@ -63,8 +69,8 @@ pub enum MetaCommand {
         /// Skill library.
         #[arg(long, default_value = DEFAULT_LIBRARY)]
         library: PathBuf,
-        /// Where the trained controller goes (default: skills/library/meta for sitting,
-        /// skills/library/meta-<scenario name> otherwise).
+        /// Where the trained controller goes (default: LIBRARY/meta for sitting,
+        /// LIBRARY/meta-<scenario name> otherwise; LIBRARY is --library).
         #[arg(long)]
         out: Option<PathBuf>,
         /// Run directory (default: runs/meta-<time>).
@@ -286,7 +292,7 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
                 return train_latent(model, &dir, args);
             }
             let setup = setup(file.as_ref(), &library, &chain, &skills)?;
-            let out = out.unwrap_or_else(|| default_meta(&setup));
+            let out = out.unwrap_or_else(|| setup_meta(&library, &setup));
             let secs = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
             let run_dir = run_dir.unwrap_or_else(|| PathBuf::from(format!("runs/meta-{secs}-s{seed}")));
             let ppo =
@@ -420,7 +426,7 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
                 let cfg = plan.config()?;
                 deliver(&setup, Controller::Planner(cfg), &name, &zones, trials, seed, window, max_states)?
             } else {
-                let meta = meta.unwrap_or_else(|| default_meta(&setup));
+                let meta = meta.unwrap_or_else(|| setup_meta(&library, &setup));
                 let (_, head) = load(&meta, &setup)?;
                 deliver(&setup, &head, &name, &zones, trials, seed, window, max_states)?
             };
@@ -527,7 +533,7 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
                 return eval_latent(model, &dir, args);
             }
             let setup = setup(file.as_ref(), &library, &chain, &skills)?;
-            let meta = meta.unwrap_or_else(|| default_meta(&setup));
+            let meta = meta.unwrap_or_else(|| setup_meta(&library, &setup));
             let (_, head) = load(&meta, &setup)?;
             let out = out.unwrap_or_else(|| meta.join("eval"));
             match setup.task {
@@ -619,9 +625,9 @@ fn no_skill_options(chain: &[String], skills: &[String]) -> Result<()> {
 }
 
 /// Where a latent high level goes when no `--out`/`--meta` is given:
-/// `skills/library/latent-meta-<scenario name>`.
-pub fn default_latent_meta(model: &WorldModel) -> PathBuf {
-    Path::new(DEFAULT_LIBRARY).join(format!("latent-meta-{}", model.scenario.scenario.name))
+/// `LIBRARY/latent-meta-<scenario name>`.
+pub fn default_latent_meta(library: &Path, model: &WorldModel) -> PathBuf {
+    library.join(format!("latent-meta-{}", model.scenario.scenario.name))
 }
 
 /// `meta train` through the latent low level.
@@ -642,7 +648,7 @@ fn train_latent(model: Arc<WorldModel>, dir: &Path, a: LatentTrain) -> Result<()
         LatentSetup::new(model, dir, &a.library, a.hold)
             .with_context(|| format!("preparing the latent low level {}", dir.display()))?,
     );
-    let out = a.out.unwrap_or_else(|| default_latent_meta(&setup.model));
+    let out = a.out.unwrap_or_else(|| default_latent_meta(&a.library, &setup.model));
     let secs = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
     let run_dir = a.run_dir.unwrap_or_else(|| PathBuf::from(format!("runs/latent-meta-{secs}-s{}", a.seed)));
     let ppo = repertoire_learn::ppo::PpoConfig {
@@ -720,7 +726,7 @@ pub(super) struct LatentEval {
 }
 
 pub(super) fn eval_latent(model: Arc<WorldModel>, dir: &Path, a: LatentEval) -> Result<()> {
-    let meta = a.meta.unwrap_or_else(|| default_latent_meta(&model));
+    let meta = a.meta.unwrap_or_else(|| default_latent_meta(&a.library, &model));
     let manifest = latent::read_manifest(&meta)?;
     let setup = Arc::new(
         LatentSetup::new(model, dir, &a.library, manifest.hold)

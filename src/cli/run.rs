@@ -31,8 +31,8 @@ pub struct RunArgs {
     /// Skill library.
     #[arg(long, default_value = super::meta::DEFAULT_LIBRARY)]
     pub library: PathBuf,
-    /// Trained meta-controller (default: skills/library/meta for sitting,
-    /// skills/library/meta-<scenario name> otherwise).
+    /// Trained meta-controller (default: LIBRARY/meta for sitting,
+    /// LIBRARY/meta-<scenario name> otherwise; LIBRARY is --library).
     #[arg(long)]
     pub meta: Option<PathBuf>,
     /// Trials per spawn zone.
@@ -50,7 +50,7 @@ pub fn run(args: RunArgs) -> Result<()> {
     }
     let meta = match &args.meta {
         Some(m) => m.clone(),
-        None => default_meta(args.file.as_ref())?,
+        None => default_meta(&args.library, args.file.as_ref())?,
     };
     if meta.join("meta.ron").exists() {
         // The skills the controller was trained over (a warehouse controller may have been
@@ -164,7 +164,7 @@ pub fn run(args: RunArgs) -> Result<()> {
 /// `run` on a scenario whose low level is a latent model: a quick evaluation of its trained
 /// latent high level, or, without one, how to train it.
 fn run_latent(model: Arc<WorldModel>, dir: &std::path::Path, args: RunArgs) -> Result<()> {
-    let meta = args.meta.clone().unwrap_or_else(|| super::meta::default_latent_meta(&model));
+    let meta = args.meta.clone().unwrap_or_else(|| super::meta::default_latent_meta(&args.library, &model));
     let name = model.scenario.scenario.name.clone();
     if !meta.join(repertoire_meta::latent::MANIFEST_FILE).exists() {
         println!(
@@ -199,13 +199,10 @@ fn run_latent(model: Arc<WorldModel>, dir: &std::path::Path, args: RunArgs) -> R
 
 /// The meta-controller folder `run` looks in for `file`'s scenario (see
 /// [`super::meta::default_meta`]), read from the scenario's task without loading skills.
-fn default_meta(file: Option<&PathBuf>) -> Result<PathBuf> {
+fn default_meta(library: &std::path::Path, file: Option<&PathBuf>) -> Result<PathBuf> {
     let scenario = super::load_scenario(file)?;
     let s = &scenario.scenario;
-    Ok(match s.task {
-        repertoire_scenes::scenario::Task::Sit { .. } => PathBuf::from(super::meta::DEFAULT_META),
-        _ => std::path::Path::new(super::meta::DEFAULT_LIBRARY).join(format!("meta-{}", s.name)),
-    })
+    Ok(super::meta::default_meta(library, &s.task, &s.name))
 }
 
 /// A quick evaluation of a warehouse or toss meta-controller: `trials` episodes (warehouse) or
