@@ -477,6 +477,26 @@ fn a_cycle_is_picked_up_at_the_frame_nearest_the_arriving_pose_and_its_pool_cove
     assert!(phases.len() >= 4, "pool phases {phases:?} do not spread over the cycle");
 }
 
+/// `walk_stage2.ron` with its target goal changed by `edit`, as a task placed in `env` at frame
+/// `f`, `(2, -1)`, facing `heading`.
+fn stage2_variant(
+    name: &str,
+    edit: impl FnOnce(&mut Goal),
+    env: &mut repertoire_skill::SkillEnv,
+    rng: &mut EnvRng,
+    f: usize,
+    heading: f64,
+) -> (SkillSetup, ImitationTask) {
+    use repertoire_humanoid::Task;
+    let mut spec = SpecFile::load(&specs().join("walk_stage2.ron")).unwrap();
+    edit(&mut spec.spec.goal);
+    let s = SkillSetup::new(spec, &temp(name)).unwrap();
+    let mut task = ImitationTask::new(s.settings.clone());
+    task.reset(env.world_mut(), rng);
+    task.place_at_frame(env.world_mut(), f, 2.0, -1.0, heading);
+    (s, task)
+}
+
 #[test]
 fn walk_stage_two_reaches_a_target_and_draws_the_next_one_ahead() {
     use repertoire_humanoid::Task;
@@ -534,14 +554,12 @@ fn walk_stage_two_reaches_a_target_and_draws_the_next_one_ahead() {
     let off30 = 30f64.to_radians();
     task.set_target(at(off30), env.world());
     let speed_30 = task.score(env.world(), f).terms[4];
-    let mut spec = SpecFile::load(&specs().join("walk_stage2.ron")).unwrap();
-    if let Goal::Target { facing_scale, .. } = &mut spec.spec.goal {
-        *facing_scale = 2.0;
-    }
-    let facing = SkillSetup::new(spec, &temp("walk-target-facing")).unwrap();
-    let mut task_f = ImitationTask::new(facing.settings.clone());
-    task_f.reset(env.world_mut(), &mut rng);
-    task_f.place_at_frame(env.world_mut(), f, 2.0, -1.0, heading);
+    let facing = |g: &mut Goal| {
+        if let Goal::Target { facing_scale, .. } = g {
+            *facing_scale = 2.0;
+        }
+    };
+    let (_, mut task_f) = stage2_variant("walk-target-facing", facing, &mut env, &mut rng, f, heading);
     task_f.set_target(at(0.0), env.world());
     let facing_ahead = task_f.score(env.world(), f).terms[4];
     task_f.set_target(at(off30), env.world());
@@ -557,28 +575,24 @@ fn walk_stage_two_reaches_a_target_and_draws_the_next_one_ahead() {
     );
 
     // Without `reach_m` (one target per episode), standing on it is no arrival.
-    let mut spec = SpecFile::load(&specs().join("walk_stage2.ron")).unwrap();
-    if let Goal::Target { reach_m, .. } = &mut spec.spec.goal {
-        *reach_m = 0.0;
-    }
-    let once = SkillSetup::new(spec, &temp("walk-target-once")).unwrap();
-    let mut task = ImitationTask::new(once.settings.clone());
-    task.reset(env.world_mut(), &mut rng);
-    task.place_at_frame(env.world_mut(), f, 2.0, -1.0, heading);
+    let once = |g: &mut Goal| {
+        if let Goal::Target { reach_m, .. } = g {
+            *reach_m = 0.0;
+        }
+    };
+    let (_, mut task) = stage2_variant("walk-target-once", once, &mut env, &mut rng, f, heading);
     task.set_target([p[0] + 0.1, p[1]], env.world());
     task.score(env.world(), f);
     assert_eq!(task.reached, 0);
 
     // With `retarget_s`, a target not reached in time is replaced (no pay, no arrival), in range.
-    let mut spec = SpecFile::load(&specs().join("walk_stage2.ron")).unwrap();
-    if let Goal::Target { retarget_s, .. } = &mut spec.spec.goal {
-        *retarget_s = 0.5;
-    }
-    let timed = SkillSetup::new(spec, &temp("walk-target-timed")).unwrap();
+    let timeout = |g: &mut Goal| {
+        if let Goal::Target { retarget_s, .. } = g {
+            *retarget_s = 0.5;
+        }
+    };
+    let (timed, mut task) = stage2_variant("walk-target-timed", timeout, &mut env, &mut rng, f, heading);
     let dt = timed.settings.reference.dt;
-    let mut task = ImitationTask::new(timed.settings.clone());
-    task.reset(env.world_mut(), &mut rng);
-    task.place_at_frame(env.world_mut(), f, 2.0, -1.0, heading);
     let far = [p[0] - 3.0, p[1] + 1.0];
     task.set_target(far, env.world());
     let due = (0.5 / dt).ceil() as usize;
