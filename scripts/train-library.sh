@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Trains the default skill library (walk, turn_left, turn_right, sit) from scratch and evaluates
+# Trains the default skill library (walk, walk_to, turn_left, turn_right, sit) from scratch and evaluates
 # it: the shipped skills/library is this script's output, and every skill's manifest records
 # the whole lineage (each stage's command, code version, figures and resulting policy hash).
 # The sitting paper's two stages, along the skill graph walk → turn → walk / sit:
@@ -12,15 +12,24 @@
 #        a. the turns from walk's states;
 #        b. walk from the turns' end poses (the meta-controller walks on after a turn);
 #        c. the turns again, from the fine-tuned walk's states;
-#        d. sit from the turns' end poses, in two rounds: SIT_FINETUNE_ITERS with 70 % of the
+#        d. sit from the turns' end poses, in three rounds: SIT_FINETUNE_ITERS with 70 % of the
 #           episodes from the pools, then SIT_FINETUNE2_ITERS with 60 % (the rest keep
-#           reference-state starts, so that sitting from a standing start is not forgotten);
+#           reference-state starts, so that sitting from a standing start is not forgotten),
+#           then SIT_REACH_ITERS of `sit_reach.ron` (the chair jittered by up to 60 cm and 60°
+#           instead of 25 cm and 20°, so the sit takes the character from further off);
+#        e. walk_to, the walk that steers towards a 2-D target (the sitting scenario's walk),
+#           grown from the fine-tuned walk in three stages (WALK_TO_ITERS: 600 with the spread
+#           raised to log std -2.2, then 1200 and 1200) and fine-tuned from the turns' end
+#           poses (WALK_TO_FINETUNE_ITERS, 800); LIBRARY-stage1 gets walk_to grown the same
+#           way from its own stage-one walk, without the fine-tune;
 #   3. `skill eval` over TRIALS trials from the clip start and from the predecessors' end poses
 #      after each stage; every table is also collected in LIBRARY/evals.md.
 # Usage: bash scripts/train-library.sh [LIBRARY] — env: TRIALS (1000), TURN_FINETUNE_ITERS (400),
 # WALK_FINETUNE_ITERS (800; 0 skips walk's fine-tune and the turns' second one),
 # TURN_FINETUNE2_ITERS (400; 0 skips the turns' second fine-tune),
 # SIT_FINETUNE_ITERS (600), SIT_FINETUNE2_ITERS (1000; 0 skips the second round),
+# SIT_REACH_ITERS (1000; 0 skips the third), WALK_TO_ITERS ("600 1200 1200"),
+# WALK_TO_FINETUNE_ITERS (800),
 # EXTRA (more arguments for every train/finetune, e.g. "--envs 8").
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -45,6 +54,18 @@ eval_skill() {
 }
 finetune() {
   "$bin" skill finetune "$@" --library "$lib" "${extra[@]}"
+}
+# walk_to grown from LIBRARY's walk (the first stage widens the walk's spread to explore turning).
+grow_walk_to() {
+  local l="$1" first=1
+  for n in ${WALK_TO_ITERS:-600 1200 1200}; do
+    if [ "$first" = 1 ]; then
+      "$bin" skill train "$specs/walk_to.ron" --warm-start-from walk --explore-log-std -2.2 --iterations "$n" --library "$l" "${extra[@]}"
+      first=0
+    else
+      "$bin" skill train "$specs/walk_to.ron" --warm-start --iterations "$n" --library "$l" "${extra[@]}"
+    fi
+  done
 }
 
 for s in walk turn_left turn_right sit; do
@@ -73,6 +94,15 @@ finetune "$specs/sit.ron" --from turn_left,turn_right --fraction 0.7 --iteration
 if [ "${SIT_FINETUNE2_ITERS:-1000}" != 0 ]; then
   finetune "$specs/sit.ron" --from turn_left,turn_right --fraction 0.6 --iterations "${SIT_FINETUNE2_ITERS:-1000}"
 fi
+if [ "${SIT_REACH_ITERS:-1000}" != 0 ]; then
+  finetune "$specs/sit_reach.ron" --from turn_left,turn_right --fraction 0.6 --iterations "${SIT_REACH_ITERS:-1000}"
+fi
 eval_skill "$specs/sit.ron" --from turn_left,turn_right
+
+grow_walk_to "$lib-stage1"
+grow_walk_to "$lib"
+finetune "$specs/walk_to.ron" --from turn_left,turn_right --fraction 0.7 --iterations "${WALK_TO_FINETUNE_ITERS:-800}"
+eval_skill "$specs/walk_to.ron"
+eval_skill "$specs/walk_to.ron" --from turn_left,turn_right --no-pool
 mv "$evals" "$lib/evals.md"
 echo "library written to $lib (evaluations in $lib/evals.md)"

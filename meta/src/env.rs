@@ -1,10 +1,11 @@
 //! [`MetaEnv`]: a scenario's task at the meta rate. Each decision picks a skill (masked by the
-//! skill graph) and a continuous 2-D target; the chosen skill's frozen policy then drives the
-//! character for `control_hz / meta_hz` control ticks. The task ([`crate::task`]) decides the
-//! reward, success and failure: sitting rewards 1 while the pelvis touches the seat, else
-//! `0.5·(−V_sit)`, and ends on success (3 s of unbroken seat contact); the warehouse rewards 1
-//! per completed phase; the toss rewards the ball's time in the bucket. Every episode ends on a
-//! fall, a task failure or the time limit.
+//! skill graph) and a continuous 2-D target (its azimuth and distance, in units of the range the
+//! skill was trained on); the chosen skill's frozen policy then drives the character for
+//! `control_hz / meta_hz` control ticks. The task ([`crate::task`]) decides the reward, success
+//! and failure: sitting rewards 1 while the pelvis touches the seat, else the approach
+//! `0.5·(−dΦ/dt)` ([`crate::task::sit_potential`]), and ends on success (3 s of unbroken seat
+//! contact); the warehouse rewards 1 per completed phase; the toss rewards the ball's time in
+//! the bucket. Every episode ends on a fall, a task failure or the time limit.
 //!
 //! Episodes start mid-motion in the first start skill's successful end states (e.g. walking),
 //! at the spawn point and heading the zone draws; without such a pool, standing still. A task
@@ -66,13 +67,60 @@ pub struct MetaSkill {
     pub holds: bool,
     /// Whether it observes a 2-D target (walk, stage 2).
     pub uses_target: bool,
+    /// The range its targets were drawn from in training (for [`MetaSkill::target_offset`]).
+    pub target_range: TargetRange,
     /// A cycle's joint angles and velocities per frame (`frames × dof`; from the manifest's
     /// clip record, empty when it has none): choosing the skill picks the cycle up at the frame
     /// nearest the character's pose instead of its first frame.
     pub cycle: (Vec<f32>, Vec<f32>),
 }
 
+/// Where a target-taking skill's training targets lay, in its heading frame: `distance_m` away,
+/// within ±`azimuth_deg` of the heading.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TargetRange {
+    /// Distance range (m).
+    pub distance_m: (f64, f64),
+    /// Azimuth either side of the heading (degrees).
+    pub azimuth_deg: f64,
+}
+
+impl TargetRange {
+    /// The range of a skill's goal (the walk stage 2's), or a 2 m ± 90° default.
+    pub fn of(goal: &Goal) -> TargetRange {
+        match goal {
+            Goal::Target { distance_m, azimuth_deg, .. } => {
+                TargetRange { distance_m: *distance_m, azimuth_deg: *azimuth_deg }
+            }
+            _ => TargetRange { distance_m: (2.0, 2.0), azimuth_deg: 90.0 },
+        }
+    }
+}
+
 impl MetaSkill {
+    /// The target offset, in the pelvis' heading frame (m), of the meta-controller's continuous
+    /// action `a`: `a[0]` is the azimuth and `a[1]` the distance, each in units of the skill's
+    /// training range (−1 … 1, clamped): `[0, 0]` is the middle distance straight ahead. So the
+    /// controller's initial Gaussian already asks for targets like the ones the skill learned
+    /// to walk to, never one at its feet or behind it.
+    pub fn target_offset(&self, a: [f32; 2]) -> [f64; 2] {
+        let r = self.target_range;
+        let psi = (f64::from(a[0]).clamp(-1.0, 1.0) * r.azimuth_deg).to_radians();
+        let (lo, hi) = r.distance_m;
+        let d = lo + (hi - lo) * 0.5 * (f64::from(a[1]).clamp(-1.0, 1.0) + 1.0);
+        [d * psi.cos(), d * psi.sin()]
+    }
+
+    /// The action [`MetaSkill::target_offset`] maps to a target `distance` m away at
+    /// `azimuth_deg` from the heading (both clamped to the skill's range).
+    pub fn target_action(&self, azimuth_deg: f64, distance: f64) -> [f32; 2] {
+        let r = self.target_range;
+        let (lo, hi) = r.distance_m;
+        let a0 = if r.azimuth_deg > 0.0 { (azimuth_deg / r.azimuth_deg).clamp(-1.0, 1.0) } else { 0.0 };
+        let a1 = if hi > lo { (2.0 * (distance - lo) / (hi - lo) - 1.0).clamp(-1.0, 1.0) } else { 0.0 };
+        [a0 as f32, a1 as f32]
+    }
+
     /// The clip frame after `phase`: a looping clip wraps, a holding one stays on its last
     /// frame, and any other stops there too (until [`MetaSkill::ended`] lets a new choice
     /// restart it).
@@ -197,6 +245,7 @@ impl MetaSetup {
                 looping: s.manifest.spec.clip.looping,
                 holds: s.manifest.spec.clip.hold_s > 0.0,
                 uses_target,
+                target_range: TargetRange::of(&s.manifest.spec.goal),
                 cycle: (s.manifest.clip.cycle_joints.clone(), s.manifest.clip.cycle_joint_vel.clone()),
                 policy_fnv1a: s.manifest.policy_fnv1a,
                 layout,
@@ -548,11 +597,12 @@ impl Env for MetaEnv {
             self.chosen.push(option);
         }
         // A skill that takes a target (walk, stage 2) gets the one of this decision, in the
-        // pelvis' heading frame: the meta-controller steers it every decision.
+        // pelvis' heading frame and the skill's training range: the meta-controller steers it
+        // every decision.
         if switched || self.setup.skills[option].uses_target {
             let p = self.world.pelvis_frame().pos;
             let yaw = self.world.heading();
-            let (dx, dy) = (f64::from(action[1]), f64::from(action[2]));
+            let [dx, dy] = self.setup.skills[option].target_offset([action[1], action[2]]);
             self.target = [p[0] + yaw.cos() * dx - yaw.sin() * dy, p[1] + yaw.sin() * dx + yaw.cos() * dy];
         }
         let mut fell = false;

@@ -37,18 +37,21 @@ impl Default for PlannerConfig {
     }
 }
 
-/// Targets tried for a skill that takes one, in the pelvis' heading frame (m): 2 m away, straight
-/// ahead and 30° and 60° to either side. Skills without a target get the first.
-pub const TARGETS: [[f32; 2]; 5] = [[2.0, 0.0], [1.732, 1.0], [1.732, -1.0], [1.0, 1.732], [1.0, -1.732]];
+/// Targets tried for a skill that takes one, in the pelvis' heading frame, as (azimuth in
+/// degrees, distance in m): 2 m away, straight ahead and 30° and 60° to either side. Skills
+/// without a target get the first.
+pub const TARGETS: [(f64, f64); 5] = [(0.0, 2.0), (30.0, 2.0), (-30.0, 2.0), (60.0, 2.0), (-60.0, 2.0)];
 
 /// One decision of a plan: the option and the index of its target in [`TARGETS`].
 pub type Move = (usize, usize);
 
-/// The meta environment's action for a move.
-pub fn write_action((option, target): Move, act: &mut [f32]) {
+/// The meta environment's action for a move over `setup`'s skills.
+pub fn write_action(setup: &MetaSetup, (option, target): Move, act: &mut [f32]) {
     act[0] = option as f32;
-    act[1] = TARGETS[target][0];
-    act[2] = TARGETS[target][1];
+    let (azimuth, distance) = TARGETS[target];
+    let [a, b] = setup.skills[option].target_action(azimuth, distance);
+    act[1] = a;
+    act[2] = b;
 }
 
 /// A plan's simulated outcome.
@@ -138,8 +141,8 @@ impl Planner {
         }
     }
 
-    /// Writes the next decision for `env` into `act` (`[option, target x, target y]`, as the
-    /// meta environment reads it).
+    /// Writes the next decision for `env` into `act` (`[option, target azimuth, target
+    /// distance]`, as the meta environment reads it).
     pub fn act(&mut self, env: &MetaEnv, act: &mut [f32]) {
         let now = env.snapshot();
         if !self.plan.is_empty() && now != self.expected {
@@ -156,7 +159,7 @@ impl Planner {
             }
         }
         let option = self.plan.pop().expect("a search gives at least one move");
-        write_action(option, act);
+        write_action(&self.setup, option, act);
         // What the episode will look like after this option, for the next call's check.
         self.expected.clear();
         if !self.plan.is_empty() {
@@ -192,7 +195,7 @@ impl Planner {
 
     /// One decision of `option` in the copy: its reward and whether the episode ended.
     fn step(&mut self, option: Move) -> (f32, bool, bool) {
-        write_action(option, &mut self.act);
+        write_action(&self.setup, option, &mut self.act);
         self.simulated += 1;
         let out = self.scratch.step(&self.act, &mut self.obs);
         let fell = out.terms[2] > 0.5;

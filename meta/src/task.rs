@@ -4,8 +4,9 @@
 //! a [`TaskState`] for its current episode. Sitting, the warehouse and the toss are the three.
 
 use rand::Rng;
+use repertoire_scenes::math::wrap_angle;
 use repertoire_scenes::scenario::{Task as ScenarioTask, WarehousePhase};
-use repertoire_scenes::{Feature, World, WorldModel};
+use repertoire_scenes::{Feature, SitApproach, World, WorldModel};
 use repertoire_skill::reference::to_heading;
 
 use crate::error::{MetaError, Result};
@@ -28,7 +29,8 @@ const PUTDOWN_START_M: f64 = 0.55;
 /// A task resolved to prop indices of one scene.
 #[derive(Debug, Clone, PartialEq)]
 pub enum TaskSpec {
-    /// Sit on a chair: 1 per decision seated, else `0.5·(−V_sit)`; success after `hold_s`
+    /// Sit on a chair: 1 per decision seated, else `0.5·(−V_sit)` (or the approach to where a
+    /// sit starts, [`SitApproach::Spot`]); success after `hold_s`
     /// seconds seated without a break. Seated: the pelvis on the seat, heading within `facing`
     /// of the chair's front ([`World::seated_on`]).
     Sit {
@@ -39,6 +41,8 @@ pub enum TaskSpec {
         /// Largest angle between the pelvis heading and the chair's front that counts as
         /// seated (radians; π: any contact).
         facing: f64,
+        /// What the reward pays for while not seated.
+        approach: SitApproach,
     },
     /// The warehouse (see [`crate::warehouse`]).
     Warehouse(WarehouseSpec),
@@ -64,9 +68,9 @@ impl TaskSpec {
     pub fn of(model: &WorldModel) -> Result<Self> {
         let sc = &model.scenario;
         match &sc.scenario.task {
-            ScenarioTask::Sit { seat, hold_s, facing_deg, .. } => {
+            ScenarioTask::Sit { seat, hold_s, facing_deg, approach, .. } => {
                 let seat = model.prop_id(seat).ok_or_else(|| MetaError::Invalid(format!("no seat prop `{seat}`")))?;
-                Ok(TaskSpec::Sit { seat, hold_s: *hold_s, facing: facing_deg.to_radians() })
+                Ok(TaskSpec::Sit { seat, hold_s: *hold_s, facing: facing_deg.to_radians(), approach: *approach })
             }
             ScenarioTask::Warehouse(w) => Ok(TaskSpec::Warehouse(WarehouseSpec::new(model, w)?)),
             ScenarioTask::Toss(t) => Ok(TaskSpec::Toss(TossSpec::new(model, t)?)),
@@ -155,7 +159,7 @@ impl TaskSpec {
     pub fn new_state(&self, control_hz: f64) -> TaskState {
         match self {
             TaskSpec::Sit { hold_s, .. } => {
-                TaskState::Sit { judge: SitJudge::new(*hold_s, control_hz), last_distance: 0.0 }
+                TaskState::Sit { judge: SitJudge::new(*hold_s, control_hz), last_potential: 0.0 }
             }
             TaskSpec::Warehouse(w) => TaskState::Warehouse(WarehouseJudge::new(
                 WarehousePhase::Goto,
@@ -170,12 +174,12 @@ impl TaskSpec {
 /// One episode's task state.
 #[derive(Debug, Clone, PartialEq)]
 pub enum TaskState {
-    /// Sitting: the success judge and the last decision's pelvis-to-seat distance.
+    /// Sitting: the success judge and the last decision's approach potential.
     Sit {
         /// The success judge.
         judge: SitJudge,
-        /// Pelvis-to-seat distance at the end of the last decision (m).
-        last_distance: f64,
+        /// [`sit_potential`] at the end of the last decision (m).
+        last_potential: f64,
     },
     /// The warehouse's phase judge.
     Warehouse(WarehouseJudge),
@@ -188,6 +192,20 @@ fn seat_distance(world: &World, seat: usize) -> f64 {
     let p = world.pelvis_frame().pos;
     let pl = world.placements()[seat];
     ((p[0] - pl.pos[0]).powi(2) + (p[1] - pl.pos[1]).powi(2) + (p[2] - pl.top).powi(2)).sqrt()
+}
+
+/// What the sit reward's approach term measures (it pays `0.5·(−dΦ/dt)`): the pelvis–seat
+/// distance, or the distance to where a sit starts plus the heading error ([`SitApproach`]).
+pub fn sit_potential(world: &World, seat: usize, approach: &SitApproach) -> f64 {
+    match approach {
+        SitApproach::Seat => seat_distance(world, seat),
+        SitApproach::Spot { ahead_m, heading_m } => {
+            let p = world.pelvis_frame().pos;
+            let pl = world.placements()[seat];
+            let spot = [pl.pos[0] + ahead_m * pl.yaw.cos(), pl.pos[1] + ahead_m * pl.yaw.sin()];
+            (p[0] - spot[0]).hypot(p[1] - spot[1]) + heading_m * wrap_angle(world.heading() - pl.yaw).abs()
+        }
+    }
 }
 
 impl TaskState {
@@ -249,9 +267,9 @@ impl TaskState {
     /// judge's first tick, the toss's throw.
     pub fn begin(&mut self, spec: &TaskSpec, world: &mut World, rng: &mut impl Rng, over: &EpisodeOverride) {
         match (spec, self) {
-            (TaskSpec::Sit { seat, .. }, TaskState::Sit { judge, last_distance }) => {
-                *last_distance = seat_distance(world, *seat);
-                judge.tick(false, *last_distance);
+            (TaskSpec::Sit { seat, approach, .. }, TaskState::Sit { judge, last_potential }) => {
+                *last_potential = sit_potential(world, *seat, approach);
+                judge.tick(false, seat_distance(world, *seat));
             }
             (TaskSpec::Toss(t), TaskState::Toss(judge)) => {
                 // A launch only fails on a non-positive flight time, which validation rules out.
@@ -312,17 +330,17 @@ impl TaskState {
     /// The reward of a decision that ran `seconds` and ended with a fall when `fell`.
     pub fn decision_reward(&mut self, spec: &TaskSpec, world: &World, fell: bool, seconds: f64) -> f32 {
         match (spec, self) {
-            (TaskSpec::Sit { seat, facing, .. }, TaskState::Sit { last_distance, .. }) => {
-                let d = seat_distance(world, *seat);
+            (TaskSpec::Sit { seat, facing, approach, .. }, TaskState::Sit { last_potential, .. }) => {
+                let d = sit_potential(world, *seat, approach);
                 let on_seat = world.seated_on(*seat, *facing);
                 let reward = if fell {
                     0.0
                 } else if on_seat {
                     1.0
                 } else {
-                    (0.5 * -(d - *last_distance) / seconds) as f32
+                    (0.5 * -(d - *last_potential) / seconds) as f32
                 };
-                *last_distance = d;
+                *last_potential = d;
                 reward
             }
             (TaskSpec::Warehouse(_), TaskState::Warehouse(judge)) => judge.take_reward(),
@@ -401,8 +419,8 @@ impl TaskState {
     /// The state as numbers (checkpoints); [`TaskState::restore`] reads it back.
     pub fn snapshot(&self) -> Vec<f64> {
         match self {
-            TaskState::Sit { judge, last_distance } => vec![
-                *last_distance,
+            TaskState::Sit { judge, last_potential } => vec![
+                *last_potential,
                 f64::from(judge.streak()),
                 f64::from(u8::from(judge.succeeded)),
                 judge.min_distance,
@@ -423,8 +441,8 @@ impl TaskState {
     /// Restores a [`TaskState::snapshot`] of the same task.
     pub fn restore(&mut self, s: &[f64]) {
         match self {
-            TaskState::Sit { judge, last_distance } => {
-                *last_distance = s[0];
+            TaskState::Sit { judge, last_potential } => {
+                *last_potential = s[0];
                 judge.restore(s[1] as u32, s[2] != 0.0, s[3]);
             }
             TaskState::Warehouse(j) => j.restore(s),

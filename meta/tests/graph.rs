@@ -8,7 +8,7 @@ use repertoire_scenes::ScenarioFile;
 fn the_default_graph_follows_the_scenario() {
     let s = ScenarioFile::builtin_default();
     let g = SkillGraph::of(&s.scenario);
-    assert_eq!(g.names(), ["walk", "turn_left", "turn_right", "sit"]);
+    assert_eq!(g.names(), ["walk_to", "turn_left", "turn_right", "sit"]);
     let (walk, left, right, sit) = (0, 1, 2, 3);
     assert!(g.is_allowed(None, walk) && !g.is_allowed(None, sit), "episodes do not start seated");
     assert!(g.is_allowed(Some(walk), left) && g.is_allowed(Some(walk), right));
@@ -19,7 +19,7 @@ fn the_default_graph_follows_the_scenario() {
 
 #[test]
 fn a_fixed_order_chain_never_allows_an_illegal_skill() {
-    let g = SkillGraph::chain(&["walk", "turn_left", "sit"]);
+    let g = SkillGraph::chain(&["walk_to", "turn_left", "sit"]);
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(4);
     let mut mask = vec![false; g.len()];
     // Random choices among the allowed options, many episodes: the visited order is always a
@@ -44,8 +44,8 @@ fn a_fixed_order_chain_never_allows_an_illegal_skill() {
 fn restricting_the_graph_keeps_its_edges_among_the_kept_skills() {
     let s = ScenarioFile::builtin_default();
     let g = SkillGraph::of(&s.scenario);
-    let left = g.restricted(&["walk".into(), "turn_left".into(), "sit".into()]).expect("known skills");
-    assert_eq!(left.names(), ["walk", "turn_left", "sit"]);
+    let left = g.restricted(&["walk_to".into(), "turn_left".into(), "sit".into()]).expect("known skills");
+    assert_eq!(left.names(), ["walk_to", "turn_left", "sit"]);
     assert!(left.is_allowed(Some(0), 1) && left.is_allowed(Some(1), 2) && !left.is_allowed(Some(0), 2));
     assert!(left.is_allowed(None, 0) && !left.is_allowed(None, 2));
     assert!(g.restricted(&["fly".into()]).is_err());

@@ -22,7 +22,7 @@ fn library() -> &'static Path {
         let lib = std::env::temp_dir().join(format!("repertoire-meta-lib-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&lib);
         let specs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../skills/skill/specs");
-        for name in ["walk", "turn_left", "turn_right", "sit"] {
+        for name in ["walk_to", "turn_left", "turn_right", "sit"] {
             let spec = SpecFile::load(&specs.join(format!("{name}.ron"))).expect("spec");
             let setup = SkillSetup::new(spec, &lib).expect("skill setup (needs the clip pack)");
             let opts = TrainOptions::quick(&lib, &lib.join(format!("run-{name}")), 1, 2, 1);
@@ -141,7 +141,7 @@ fn a_sit_chosen_again_holds_its_seated_frame_while_a_turn_replays() {
 fn a_walk_chosen_after_a_turn_picks_its_cycle_up_at_the_nearest_frame() {
     let s = setup(None);
     let (walk, turn) = (&s.skills[0], &s.skills[1]);
-    assert_eq!((walk.name.as_str(), turn.name.as_str()), ("walk", "turn_left"));
+    assert_eq!((walk.name.as_str(), turn.name.as_str()), ("walk_to", "turn_left"));
     let dof = s.model.index.joints.len();
     assert!(walk.looping && walk.cycle.0.len() == walk.frames * dof, "walk's manifest carries its cycle");
     assert!(turn.cycle.0.is_empty(), "a clip that ends has no cycle table");
@@ -177,7 +177,7 @@ fn a_walk_chosen_after_a_turn_picks_its_cycle_up_at_the_nearest_frame() {
 
 #[test]
 fn training_writes_a_controller_and_evaluation_is_reproducible() {
-    let s = setup(Some(SkillGraph::chain(&["walk", "turn_left", "sit"])));
+    let s = setup(Some(SkillGraph::chain(&["walk_to", "turn_left", "sit"])));
     let dir = std::env::temp_dir().join(format!("repertoire-meta-train-{}", std::process::id()));
     let opts = MetaTrainOptions {
         out: dir.join("meta"),
@@ -195,7 +195,7 @@ fn training_writes_a_controller_and_evaluation_is_reproducible() {
     };
     let (manifest, history) = train(Arc::clone(&s), &opts).expect("train");
     assert_eq!(history.len(), 2);
-    assert_eq!(manifest.skills, ["walk", "turn_left", "sit"]);
+    assert_eq!(manifest.skills, ["walk_to", "turn_left", "sit"]);
     let (_, head) = load(&dir.join("meta"), &s).expect("load");
     let zones = vec!["front".to_string(), "behind".to_string()];
     let a = evaluate(&s, &head, &zones, 3, 3, 7).expect("eval");
@@ -206,7 +206,7 @@ fn training_writes_a_controller_and_evaluation_is_reproducible() {
     for t in &a.trials {
         // The chain's order holds in every trial.
         let order: Vec<&str> = t.skills.iter().map(String::as_str).collect();
-        assert!(["walk", "turn_left", "sit"].starts_with(&order), "illegal order {order:?}");
+        assert!(["walk_to", "turn_left", "sit"].starts_with(&order), "illegal order {order:?}");
     }
     a.write(&dir.join("report")).expect("write");
     assert!(std::fs::read_to_string(dir.join("report/report.md")).unwrap().contains("| front | 3 |"));
@@ -248,7 +248,7 @@ fn the_planners_copy_of_an_episode_plays_out_exactly_as_the_episode() {
     use repertoire_meta::planner::{Planner, PlannerConfig, write_action};
     let s = setup(None);
     let mut planner = Planner::new(Arc::clone(&s), PlannerConfig::default());
-    // Walk (both targets, which only a stage-two walk reads), a left turn, then sit.
+    // Walk (two targets; walk_to reads them), a left turn, then sit.
     let plan = [(0, 0), (0, 1), (1, 0), (1, 0), (3, 0), (3, 0), (3, 0), (3, 0)];
     let mut compared = 0;
     for seed in 0..4 {
@@ -260,7 +260,7 @@ fn the_planners_copy_of_an_episode_plays_out_exactly_as_the_episode() {
         let mut act = vec![0.0; env.act_dim()];
         let mut ended = false;
         for &o in &plan[..predicted.played] {
-            write_action(o, &mut act);
+            write_action(&s, o, &mut act);
             let out = env.step(&act, &mut obs);
             ended = out.terminated || out.truncated;
         }
@@ -361,14 +361,24 @@ fn a_walk_that_takes_a_target_is_steered_every_decision() {
     let mut obs = vec![0.0; env.obs_dim()];
     env.reset(&mut EnvRng::seed_from_u64(2), &mut obs);
     let w = env.world().snapshot_len();
-    for (dx, dy) in [(2.0f32, 0.0f32), (0.5, -1.5), (-1.0, 2.5)] {
+    // The continuous action is the target's azimuth and distance in units of the walk's
+    // training range (±90°, 1.5–4 m), clamped: the middle is 2.75 m straight ahead.
+    let walk = &s.skills[0];
+    let near = |a: [f64; 2], b: [f64; 2]| (a[0] - b[0]).abs() < 1e-6 && (a[1] - b[1]).abs() < 1e-6;
+    assert!(near(walk.target_offset([0.0, 0.0]), [2.75, 0.0]));
+    assert!(near(walk.target_offset([1.0, -1.0]), [0.0, 1.5]), "full left, nearest");
+    assert!(near(walk.target_offset([-3.0, 7.0]), [0.0, -4.0]), "clamped: full right, farthest");
+    let [a, b] = walk.target_action(30.0, 2.0);
+    let back = walk.target_offset([a, b]);
+    assert!((back[0].hypot(back[1]) - 2.0).abs() < 1e-5 && (back[1].atan2(back[0]).to_degrees() - 30.0).abs() < 1e-4);
+    for (a0, a1) in [(0.0f32, 0.0f32), (0.3, -0.6), (-0.9, 2.5)] {
         let p = env.world().pelvis_frame().pos;
         let yaw = env.world().heading();
-        let (dx64, dy64) = (f64::from(dx), f64::from(dy));
-        let want = [p[0] + yaw.cos() * dx64 - yaw.sin() * dy64, p[1] + yaw.sin() * dx64 + yaw.cos() * dy64];
+        let [dx, dy] = walk.target_offset([a0, a1]);
+        let want = [p[0] + yaw.cos() * dx - yaw.sin() * dy, p[1] + yaw.sin() * dx + yaw.cos() * dy];
         // (A barely trained walk may fall; the environment steps on, and the target logic is
         // what is checked here.)
-        env.step(&[0.0, dx, dy], &mut obs);
+        env.step(&[0.0, a0, a1], &mut obs);
         let snap = env.snapshot();
         let got = [snap[w + 2], snap[w + 3]];
         assert!((got[0] - want[0]).abs() < 1e-9 && (got[1] - want[1]).abs() < 1e-9, "target {got:?}, wanted {want:?}");
@@ -447,4 +457,39 @@ fn seated_means_on_the_seat_facing_the_chairs_front_not_any_contact() {
     assert!(world.contacts().pelvis_on_prop(chair), "still touching the (symmetric) seat");
     assert!(!world.seated_on(chair, sixty), "facing the backrest is not sitting");
     assert!(world.seated_on(chair, std::f64::consts::PI), "facing_deg 180 counts any contact");
+}
+
+#[test]
+fn the_spot_approach_pays_for_arriving_where_the_sit_starts() {
+    // `SitApproach::Spot` measures the distance to the spot in front of the seat where the sit's
+    // clip starts, plus the heading error: at the sit's first frame with the chair where the
+    // skill expects it, the potential is about zero; turned to face the backrest it grows by
+    // heading_m · π; `Seat` is the pelvis–seat distance whatever the heading.
+    use repertoire_meta::task::sit_potential;
+    use repertoire_scenes::SitApproach;
+    use repertoire_skill::imitation::ImitationTask;
+    let specs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../skills/skill/specs");
+    let s = SkillSetup::new(SpecFile::load(&specs.join("sit.ron")).expect("spec"), library()).expect("sit");
+    let (chair, _) = s.settings.seat.expect("sit has a seat");
+    let [ahead, left, yaw] = s.seat_at_start().expect("a seat goal");
+    assert!(
+        (ahead + 0.4).abs() < 0.05 && left.abs() < 0.05 && yaw.abs() < 0.05,
+        "the seat 0.4 m behind: {ahead} {left} {yaw}"
+    );
+    let spot = SitApproach::Spot { ahead_m: 0.4, heading_m: 0.3 };
+    let mut env = s.env();
+    ImitationTask::new(s.settings.clone()).place_at_frame(env.world_mut(), 0, 0.4, -0.3, 0.7);
+    let world = env.world_mut();
+    let at_start = sit_potential(world, chair, &spot);
+    assert!(at_start < 0.08, "where the sit starts: {at_start}");
+    let seat = sit_potential(world, chair, &SitApproach::Seat);
+    let pl = world.placements()[chair];
+    let drop = world.pelvis_frame().pos[2] - pl.top;
+    assert!((seat - 0.4f64.hypot(drop)).abs() < 0.05, "the seat's centre 0.4 m behind, {drop} m down: {seat}");
+    world.move_prop(chair, pl.pos[0], pl.pos[1], pl.yaw + std::f64::consts::PI).expect("turn the chair");
+    // The spot is now 0.4 m behind the seat's centre, the heading off by π.
+    let turned = sit_potential(world, chair, &spot);
+    let want = 0.3 * std::f64::consts::PI + 0.8;
+    assert!((turned - want).abs() < 0.1, "facing the backrest: {turned}, about {want}");
+    assert!((sit_potential(world, chair, &SitApproach::Seat) - seat).abs() < 1e-9, "Seat ignores the heading");
 }

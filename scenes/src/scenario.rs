@@ -17,7 +17,8 @@ use std::path::{Path, PathBuf};
 pub const SEATED_FACING_DEG: f64 = 60.0;
 
 /// The skills the project knows how to train; a scenario may list only these.
-pub const KNOWN_SKILLS: &[&str] = &["walk", "turn_left", "turn_right", "sit", "lift", "carry", "put_down", "catch"];
+pub const KNOWN_SKILLS: &[&str] =
+    &["walk", "walk_to", "turn_left", "turn_right", "sit", "lift", "carry", "put_down", "catch"];
 
 /// A whole scenario as written in its RON file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -479,6 +480,9 @@ pub enum Task {
         /// any contact (the sitting paper's literal test).
         #[serde(default = "Task::default_facing")]
         facing_deg: f64,
+        /// What the meta-controller's reward pays for before the character is seated.
+        #[serde(default)]
+        approach: SitApproach,
     },
     /// Catch & Carry's warehouse: go to the pedestal holding the box, lift the box, carry it to
     /// another pedestal, put it down, and again (GOTO → LIFT → CARRY → PUTDOWN → GOTO …).
@@ -490,6 +494,26 @@ pub enum Task {
         /// Episode length in seconds.
         #[serde(default = "Task::default_limit")]
         time_limit_s: f64,
+    },
+}
+
+/// The sit task's reward while not seated.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum SitApproach {
+    /// The sitting paper's: `0.5·(−V_sit)`, the pelvis' approach speed to the seat's centre.
+    /// It pays as well for falling onto the seat from the front as for sitting down on it.
+    #[default]
+    Seat,
+    /// `0.5·(−dΦ/dt)` for `Φ = d + heading_m·|ψ|`: `d` the pelvis' horizontal distance to the
+    /// spot `ahead_m` in front of the seat's centre (where a sit starts, the seat behind the
+    /// pelvis) and `ψ` the angle between the pelvis heading and the way the chair faces. It
+    /// pays for arriving where a sit begins, facing away from the backrest.
+    Spot {
+        /// Distance of the spot in front of the seat's centre (m).
+        ahead_m: f64,
+        /// Metres of distance one radian of heading error counts as.
+        heading_m: f64,
     },
 }
 
@@ -829,12 +853,22 @@ impl ScenarioFile {
         }
 
         match &s.task {
-            Task::Sit { seat, hold_s, time_limit_s, facing_deg } => {
+            Task::Sit { seat, hold_s, time_limit_s, facing_deg, approach } => {
                 if !(*facing_deg > 0.0 && *facing_deg <= 180.0) {
                     return Err(self.invalid(
                         Some("facing_deg"),
                         format!("the sit task's facing_deg must be in (0, 180], got {facing_deg}"),
                     ));
+                }
+                if let SitApproach::Spot { ahead_m, heading_m } = approach {
+                    if !(ahead_m.is_finite() && *ahead_m >= 0.0 && heading_m.is_finite() && *heading_m >= 0.0) {
+                        return Err(self.invalid(
+                            Some("approach"),
+                            format!(
+                                "the sit task's Spot approach needs ahead_m and heading_m ≥ 0, got {ahead_m} and {heading_m}"
+                            ),
+                        ));
+                    }
                 }
                 match self.prop(seat) {
                     Some(Prop::Chair(_)) => {}

@@ -3,7 +3,7 @@
 
 use rand::SeedableRng;
 use rand::rngs::StdRng;
-use repertoire_scenes::scenario::{Task, WarehousePhase};
+use repertoire_scenes::scenario::{SitApproach, Task, WarehousePhase};
 use repertoire_scenes::{Location, ScenarioFile, SceneError, WorldModel};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -178,6 +178,22 @@ fn prop_bindings_parse_and_bad_ones_are_located() {
     }
     let text = format!("{HEAD}\n    task: Sit(seat: \"chair\", facing_deg: 180.0),\n)");
     assert!(parse(&text).is_ok(), "180 counts any contact");
+
+    // The approach reward: the seat (the paper's) by default, or a spot in front of it.
+    match parse(&format!("{HEAD}\n    {sit}\n)")).unwrap().scenario.task {
+        Task::Sit { approach, .. } => assert_eq!(approach, SitApproach::Seat),
+        other => panic!("{other:?}"),
+    }
+    let text = format!("{HEAD}\n    task: Sit(seat: \"chair\", approach: Spot(ahead_m: 0.4, heading_m: 0.3)),\n)");
+    match parse(&text).unwrap().scenario.task {
+        Task::Sit { approach, .. } => assert_eq!(approach, SitApproach::Spot { ahead_m: 0.4, heading_m: 0.3 }),
+        other => panic!("{other:?}"),
+    }
+    for bad in ["Spot(ahead_m: -0.4, heading_m: 0.3)", "Spot(ahead_m: 0.4, heading_m: -1.0)"] {
+        let text = format!("{HEAD}\n    task: Sit(seat: \"chair\", approach: {bad}),\n)");
+        let msg = parse(&text).err().unwrap_or_else(|| panic!("accepted {bad}")).to_string();
+        assert!(msg.starts_with("task.ron:") && msg.contains("approach"), "{bad} → {msg}");
+    }
 }
 
 #[test]
@@ -208,4 +224,34 @@ fn a_ball_of_any_drawn_mass_falls_at_standard_gravity() {
         assert!((z - expected).abs() < 0.005, "mass {}: z {z} vs {expected}", masses.last().unwrap());
     }
     assert!(masses.iter().any(|&m| (m - 3.0).abs() > 0.3), "masses away from the nominal were drawn: {masses:?}");
+}
+
+#[test]
+fn every_shipped_scenario_builds_and_the_paper_reward_variant_differs_from_sit_only_in_its_reward() {
+    let dir = shipped("sit.ron").parent().unwrap().to_path_buf();
+    let mut built = Vec::new();
+    for f in std::fs::read_dir(&dir).unwrap() {
+        let f = f.unwrap().path();
+        if f.extension().is_some_and(|e| e == "ron") {
+            let file = ScenarioFile::load(&f).unwrap_or_else(|e| panic!("{}: {e}", f.display()));
+            WorldModel::build(file).unwrap_or_else(|e| panic!("{}: {e}", f.display()));
+            built.push(f.file_name().unwrap().to_string_lossy().into_owned());
+        }
+    }
+    assert!(built.len() >= 5 && built.iter().any(|n| n == "sit_paper_reward.ron"), "{built:?}");
+    let sit = ScenarioFile::load(shipped("sit.ron")).unwrap().scenario;
+    match &sit.task {
+        Task::Sit { approach, .. } => assert_eq!(*approach, SitApproach::Spot { ahead_m: 0.4, heading_m: 0.3 }),
+        other => panic!("{other:?}"),
+    }
+    let mut paper = ScenarioFile::load(shipped("sit_paper_reward.ron")).unwrap().scenario;
+    match &mut paper.task {
+        Task::Sit { approach, .. } => {
+            assert_eq!(*approach, SitApproach::Seat);
+            *approach = SitApproach::Spot { ahead_m: 0.4, heading_m: 0.3 };
+        }
+        other => panic!("{other:?}"),
+    }
+    paper.name = sit.name.clone();
+    assert_eq!(paper, sit, "the same scene, skills, zones and success test");
 }

@@ -34,6 +34,10 @@ pub struct Variant {
     /// skills' `chain`/`skills` do not apply then).
     #[serde(default)]
     pub low_level: Option<String>,
+    /// Another scenario file (relative to the spec) instead of the study's, e.g. the same task
+    /// with another reward; training and evaluation both run on it.
+    #[serde(default)]
+    pub scenario: Option<String>,
 }
 
 fn yes() -> bool {
@@ -88,7 +92,7 @@ pub fn plan(ab: &Ablation, spec_dir: &Path, out: &Path) -> Vec<Plan> {
         for &seed in &ab.seeds {
             let dir = out.join("runs").join(format!("{}-s{seed}", slug(&v.name)));
             let mut common: Vec<String> = Vec::new();
-            if let Some(s) = &ab.scenario {
+            if let Some(s) = v.scenario.as_ref().or(ab.scenario.as_ref()) {
                 common.push(spec_dir.join(s).display().to_string());
             }
             common.extend(["--library".into(), v.library.clone().unwrap_or_else(|| ab.library.clone())]);

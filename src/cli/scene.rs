@@ -2,7 +2,7 @@
 
 use anyhow::Result;
 use clap::Subcommand;
-use repertoire_scenes::scenario::{Facing, Prop, PropBinding, Task};
+use repertoire_scenes::scenario::{Facing, Prop, PropBinding, SitApproach, Task};
 use repertoire_scenes::{Param, WorldModel};
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -147,9 +147,14 @@ fn on(base: &Option<String>) -> String {
 /// One line for people: what the task asks and how it is judged.
 fn describe_task(task: &Task) -> String {
     match task {
-        Task::Sit { seat, hold_s, time_limit_s, facing_deg } => format!(
+        Task::Sit { seat, hold_s, time_limit_s, facing_deg, approach } => format!(
             "Sit on `{seat}`: pelvis on the seat, facing within {facing_deg}° of the chair's front, for {hold_s} s \
-             within {time_limit_s} s"
+             within {time_limit_s} s; {}",
+            match approach {
+                SitApproach::Seat => "rewarded for approaching the seat".to_string(),
+                SitApproach::Spot { ahead_m, .. } =>
+                    format!("rewarded for approaching the spot {ahead_m} m in front of the seat, facing away from it"),
+            }
         ),
         Task::Warehouse(w) => format!(
             "Warehouse: move `{}` between {}; reach {} m, {} resting contacts, episodes start in {}; {} s",

@@ -43,7 +43,7 @@ fn every_shipped_spec_builds() {
             built.push(path.file_name().unwrap().to_string_lossy().into_owned());
         }
     }
-    assert!(built.len() >= 10 && built.iter().any(|n| n == "walk_facing.ron"), "{built:?}");
+    assert!(built.len() >= 10 && built.iter().any(|n| n == "walk_to.ron"), "{built:?}");
 }
 
 #[test]
