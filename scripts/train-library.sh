@@ -16,7 +16,9 @@
 #           episodes from the pools, then SIT_FINETUNE2_ITERS with 60 % (the rest keep
 #           reference-state starts, so that sitting from a standing start is not forgotten),
 #           then SIT_REACH_ITERS of `sit_reach.ron` (the chair jittered by up to 60 cm and 60°
-#           instead of 25 cm and 20°, so the sit takes the character from further off);
+#           instead of 25 cm and 20°, so the sit takes the character from further off), then
+#           that spec again at 70 % for each of SIT_REACH_MORE_ITERS (two rounds of 2000: the
+#           sit from the turns' end poses kept improving over both);
 #        e. walk_to, the walk that steers towards a 2-D target (the sitting scenario's walk),
 #           grown from the fine-tuned walk in three stages (WALK_TO_ITERS: 600 with the spread
 #           raised to log std -2.2, then 1200 and 1200) and fine-tuned from the turns' end
@@ -28,7 +30,8 @@
 # WALK_FINETUNE_ITERS (800; 0 skips walk's fine-tune and the turns' second one),
 # TURN_FINETUNE2_ITERS (400; 0 skips the turns' second fine-tune),
 # SIT_FINETUNE_ITERS (600), SIT_FINETUNE2_ITERS (1000; 0 skips the second round),
-# SIT_REACH_ITERS (1000; 0 skips the third), WALK_TO_ITERS ("600 1200 1200"),
+# SIT_REACH_ITERS (1000; 0 skips the third), SIT_REACH_MORE_ITERS ("2000 2000"; "" skips them),
+# WALK_TO_ITERS ("600 1200 1200"),
 # WALK_TO_FINETUNE_ITERS (800),
 # EXTRA (more arguments for every train/finetune, e.g. "--envs 8").
 set -euo pipefail
@@ -97,6 +100,9 @@ fi
 if [ "${SIT_REACH_ITERS:-1000}" != 0 ]; then
   finetune "$specs/sit_reach.ron" --from turn_left,turn_right --fraction 0.6 --iterations "${SIT_REACH_ITERS:-1000}"
 fi
+for n in ${SIT_REACH_MORE_ITERS-2000 2000}; do
+  finetune "$specs/sit_reach.ron" --from turn_left,turn_right --fraction 0.7 --iterations "$n"
+done
 eval_skill "$specs/sit.ron" --from turn_left,turn_right
 
 grow_walk_to "$lib-stage1"

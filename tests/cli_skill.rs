@@ -183,3 +183,21 @@ fn the_ablation_study_plans_one_described_run_per_variant_and_seed() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("bad.ron:1:") && err.contains("nme"), "{err}");
 }
+
+#[test]
+fn zero_iterations_are_refused_rather_than_run_as_one() {
+    // `--iterations 0` used to train one iteration and write it into the library.
+    let dir = common::temp_dir("cli-zero-iterations");
+    let lib = dir.join("library");
+    let walk = Path::new(env!("CARGO_MANIFEST_DIR")).join("skills/skill/specs/walk.ron");
+    for args in [
+        vec!["skill", "train", walk.to_str().unwrap(), "--iterations", "0", "--library", lib.to_str().unwrap()],
+        vec!["meta", "train", "--iterations", "0", "--library", lib.to_str().unwrap()],
+    ] {
+        let out = repertoire(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?} succeeded");
+        assert!(err.contains("--iterations") && err.contains("at least 1"), "{args:?}: {err}");
+    }
+    assert!(!lib.exists(), "nothing was written");
+}

@@ -105,6 +105,23 @@ pub struct ZoneRow {
     pub min_distance_sd: f64,
 }
 
+/// How the trials whose last skill was one skill ended.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Ending {
+    /// The skill playing when the trial ended (`none` when none was chosen).
+    pub skill: String,
+    /// Trials that ended in it.
+    pub trials: usize,
+    /// Of those, successes.
+    pub successes: usize,
+    /// Falls.
+    pub falls: usize,
+    /// Neither (the time limit).
+    pub timeouts: usize,
+    /// Mean minimum pelvis-to-seat distance of those trials (m).
+    pub min_distance_mean: f64,
+}
+
 /// The whole evaluation.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct MetaReport {
@@ -336,7 +353,40 @@ pub(crate) fn report(zones: &[String], skills: Vec<String>, trials: Vec<Trial>) 
 }
 
 impl MetaReport {
-    /// The report as Markdown: the per-zone table, then a transition matrix per side.
+    /// How trials ended, grouped by the skill playing at the end (where the falls happen), in
+    /// the order of [`MetaReport::skills`].
+    pub fn endings(&self) -> Vec<Ending> {
+        let last = |t: &Trial| t.skills.last().cloned().unwrap_or_else(|| "none".to_string());
+        let mut names: Vec<String> = self.skills.clone();
+        for t in &self.trials {
+            let l = last(t);
+            if !names.contains(&l) {
+                names.push(l);
+            }
+        }
+        names
+            .into_iter()
+            .filter_map(|skill| {
+                let ts: Vec<&Trial> = self.trials.iter().filter(|t| last(t) == skill).collect();
+                if ts.is_empty() {
+                    return None;
+                }
+                let successes = ts.iter().filter(|t| t.success).count();
+                let falls = ts.iter().filter(|t| t.fell && !t.success).count();
+                Some(Ending {
+                    trials: ts.len(),
+                    successes,
+                    falls,
+                    timeouts: ts.len() - successes - falls,
+                    min_distance_mean: ts.iter().map(|t| t.min_distance).sum::<f64>() / ts.len() as f64,
+                    skill,
+                })
+            })
+            .collect()
+    }
+
+    /// The report as Markdown: the per-zone table, how trials ended by their last skill, then a
+    /// transition matrix per side.
     pub fn markdown(&self) -> String {
         let mut s = String::new();
         let _ = writeln!(s, "| zone | trials | success | falls | min distance (m) |");
@@ -352,6 +402,19 @@ impl MetaReport {
                 r.min_distance_mean,
                 r.min_distance_sd
             );
+        }
+        let endings = self.endings();
+        if !self.skills.is_empty() && !endings.is_empty() {
+            let _ = writeln!(s, "\nhow trials ended, by the skill playing at the end (all zones)\n");
+            let _ = writeln!(s, "| last skill | trials | success | falls | time limit | min distance (m) |");
+            let _ = writeln!(s, "|---|---:|---:|---:|---:|---:|");
+            for e in &endings {
+                let _ = writeln!(
+                    s,
+                    "| {} | {} | {} | {} | {} | {:.2} |",
+                    e.skill, e.trials, e.successes, e.falls, e.timeouts, e.min_distance_mean
+                );
+            }
         }
         for (side, m) in &self.transitions {
             let _ = writeln!(s, "\nskill transitions, started on the chair's {side} (row: from, column: to)\n");
@@ -421,4 +484,47 @@ impl MetaReport {
 
 fn serde_json_string(r: &MetaReport) -> String {
     serde_json::to_string_pretty(r).expect("a report is plain data")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn trial(index: usize, skills: &[&str], success: bool, fell: bool, min_distance: f64) -> Trial {
+        Trial {
+            index,
+            zone: "front".into(),
+            start: (2.0, 0.0, 0.0),
+            local_start: (2.0, 0.0),
+            side: "left".into(),
+            success,
+            fell,
+            min_distance,
+            seconds: 5.0,
+            skills: skills.iter().map(|s| s.to_string()).collect(),
+        }
+    }
+
+    #[test]
+    fn endings_count_how_trials_ended_by_their_last_skill() {
+        let skills: Vec<String> = ["walk_to", "turn_left", "sit"].iter().map(|s| s.to_string()).collect();
+        let trials = vec![
+            trial(0, &["walk_to", "turn_left", "sit"], true, false, 0.1),
+            trial(1, &["walk_to", "turn_left", "sit"], false, true, 0.5),
+            trial(2, &["walk_to", "turn_left", "sit"], false, false, 0.3),
+            trial(3, &["walk_to"], false, true, 1.5),
+        ];
+        let r = report(&["front".to_string()], skills, trials);
+        let e = r.endings();
+        assert_eq!(e.len(), 2, "turn_left ended no trial: {e:?}");
+        assert_eq!(
+            (e[0].skill.as_str(), e[0].trials, e[0].successes, e[0].falls, e[0].timeouts),
+            ("walk_to", 1, 0, 1, 0)
+        );
+        assert_eq!((e[1].skill.as_str(), e[1].trials, e[1].successes, e[1].falls, e[1].timeouts), ("sit", 3, 1, 1, 1));
+        assert!((e[1].min_distance_mean - 0.3).abs() < 1e-12);
+        let md = r.markdown();
+        assert!(md.contains("| sit | 3 | 1 | 1 | 1 | 0.30 |"), "{md}");
+        assert!(md.contains("| walk_to | 1 | 0 | 1 | 0 | 1.50 |"), "{md}");
+    }
 }

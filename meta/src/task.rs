@@ -6,7 +6,7 @@
 use rand::Rng;
 use repertoire_scenes::math::wrap_angle;
 use repertoire_scenes::scenario::{Task as ScenarioTask, WarehousePhase};
-use repertoire_scenes::{Feature, SitApproach, World, WorldModel};
+use repertoire_scenes::{Feature, SitApproach, SitFall, World, WorldModel};
 use repertoire_skill::reference::to_heading;
 
 use crate::error::{MetaError, Result};
@@ -43,6 +43,8 @@ pub enum TaskSpec {
         facing: f64,
         /// What the reward pays for while not seated.
         approach: SitApproach,
+        /// What a fall does to the approach reward paid so far.
+        on_fall: SitFall,
     },
     /// The warehouse (see [`crate::warehouse`]).
     Warehouse(WarehouseSpec),
@@ -68,9 +70,15 @@ impl TaskSpec {
     pub fn of(model: &WorldModel) -> Result<Self> {
         let sc = &model.scenario;
         match &sc.scenario.task {
-            ScenarioTask::Sit { seat, hold_s, facing_deg, approach, .. } => {
+            ScenarioTask::Sit { seat, hold_s, facing_deg, approach, on_fall, .. } => {
                 let seat = model.prop_id(seat).ok_or_else(|| MetaError::Invalid(format!("no seat prop `{seat}`")))?;
-                Ok(TaskSpec::Sit { seat, hold_s: *hold_s, facing: facing_deg.to_radians(), approach: *approach })
+                Ok(TaskSpec::Sit {
+                    seat,
+                    hold_s: *hold_s,
+                    facing: facing_deg.to_radians(),
+                    approach: *approach,
+                    on_fall: *on_fall,
+                })
             }
             ScenarioTask::Warehouse(w) => Ok(TaskSpec::Warehouse(WarehouseSpec::new(model, w)?)),
             ScenarioTask::Toss(t) => Ok(TaskSpec::Toss(TossSpec::new(model, t)?)),
@@ -159,7 +167,7 @@ impl TaskSpec {
     pub fn new_state(&self, control_hz: f64) -> TaskState {
         match self {
             TaskSpec::Sit { hold_s, .. } => {
-                TaskState::Sit { judge: SitJudge::new(*hold_s, control_hz), last_potential: 0.0 }
+                TaskState::Sit { judge: SitJudge::new(*hold_s, control_hz), last_potential: 0.0, paid: 0.0 }
             }
             TaskSpec::Warehouse(w) => TaskState::Warehouse(WarehouseJudge::new(
                 WarehousePhase::Goto,
@@ -180,6 +188,8 @@ pub enum TaskState {
         judge: SitJudge,
         /// [`sit_potential`] at the end of the last decision (m).
         last_potential: f64,
+        /// Approach reward paid so far this episode (what [`SitFall::Forfeit`] takes back).
+        paid: f64,
     },
     /// The warehouse's phase judge.
     Warehouse(WarehouseJudge),
@@ -267,7 +277,7 @@ impl TaskState {
     /// judge's first tick, the toss's throw.
     pub fn begin(&mut self, spec: &TaskSpec, world: &mut World, rng: &mut impl Rng, over: &EpisodeOverride) {
         match (spec, self) {
-            (TaskSpec::Sit { seat, approach, .. }, TaskState::Sit { judge, last_potential }) => {
+            (TaskSpec::Sit { seat, approach, .. }, TaskState::Sit { judge, last_potential, .. }) => {
                 *last_potential = sit_potential(world, *seat, approach);
                 judge.tick(false, seat_distance(world, *seat));
             }
@@ -330,18 +340,23 @@ impl TaskState {
     /// The reward of a decision that ran `seconds` and ended with a fall when `fell`.
     pub fn decision_reward(&mut self, spec: &TaskSpec, world: &World, fell: bool, seconds: f64) -> f32 {
         match (spec, self) {
-            (TaskSpec::Sit { seat, facing, approach, .. }, TaskState::Sit { last_potential, .. }) => {
+            (TaskSpec::Sit { seat, facing, approach, on_fall, .. }, TaskState::Sit { last_potential, paid, .. }) => {
                 let d = sit_potential(world, *seat, approach);
                 let on_seat = world.seated_on(*seat, *facing);
                 let reward = if fell {
-                    0.0
+                    match on_fall {
+                        SitFall::Keep => 0.0,
+                        SitFall::Forfeit => -std::mem::take(paid),
+                    }
                 } else if on_seat {
                     1.0
                 } else {
-                    (0.5 * -(d - *last_potential) / seconds) as f32
+                    let r = 0.5 * -(d - *last_potential) / seconds;
+                    *paid += r;
+                    r
                 };
                 *last_potential = d;
-                reward
+                reward as f32
             }
             (TaskSpec::Warehouse(_), TaskState::Warehouse(judge)) => judge.take_reward(),
             (TaskSpec::Toss(t), TaskState::Toss(judge)) => {
@@ -419,11 +434,12 @@ impl TaskState {
     /// The state as numbers (checkpoints); [`TaskState::restore`] reads it back.
     pub fn snapshot(&self) -> Vec<f64> {
         match self {
-            TaskState::Sit { judge, last_potential } => vec![
+            TaskState::Sit { judge, last_potential, paid } => vec![
                 *last_potential,
                 f64::from(judge.streak()),
                 f64::from(u8::from(judge.succeeded)),
                 judge.min_distance,
+                *paid,
             ],
             TaskState::Warehouse(j) => j.snapshot().to_vec(),
             TaskState::Toss(j) => j.snapshot().to_vec(),
@@ -433,7 +449,7 @@ impl TaskState {
     /// Number of values [`TaskState::snapshot`] writes.
     pub fn snapshot_len(&self) -> usize {
         match self {
-            TaskState::Sit { .. } => 4,
+            TaskState::Sit { .. } => 5,
             TaskState::Warehouse(_) | TaskState::Toss(_) => 8,
         }
     }
@@ -441,9 +457,10 @@ impl TaskState {
     /// Restores a [`TaskState::snapshot`] of the same task.
     pub fn restore(&mut self, s: &[f64]) {
         match self {
-            TaskState::Sit { judge, last_potential } => {
+            TaskState::Sit { judge, last_potential, paid } => {
                 *last_potential = s[0];
                 judge.restore(s[1] as u32, s[2] != 0.0, s[3]);
+                *paid = s[4];
             }
             TaskState::Warehouse(j) => j.restore(s),
             TaskState::Toss(j) => j.restore(s),

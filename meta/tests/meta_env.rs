@@ -493,3 +493,51 @@ fn the_spot_approach_pays_for_arriving_where_the_sit_starts() {
     assert!((turned - want).abs() < 0.1, "facing the backrest: {turned}, about {want}");
     assert!((sit_potential(world, chair, &SitApproach::Seat) - seat).abs() < 1e-9, "Seat ignores the heading");
 }
+
+#[test]
+fn a_fall_forfeits_the_approach_reward_only_when_the_scenario_says_so() {
+    // `on_fall: Forfeit`: the decision that ends in a fall pays back, negated, the approach
+    // reward the episode earned, so walking towards the chair and falling earns nothing;
+    // `Keep` (the paper's) pays 0 for the fall and keeps the rest. The running sum survives a
+    // snapshot and restore (the planner's copies of an episode).
+    use repertoire_meta::task::{EpisodeOverride, TaskSpec, sit_potential};
+    use repertoire_scenes::{SitApproach, SitFall};
+    let specs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../skills/skill/specs");
+    let s = SkillSetup::new(SpecFile::load(&specs.join("sit.ron")).expect("spec"), library()).expect("sit");
+    let (chair, _) = s.settings.seat.expect("sit has a seat");
+    let approach = SitApproach::Spot { ahead_m: 0.4, heading_m: 0.3 };
+    let mut env = s.env();
+    let world = env.world_mut();
+    let pl = world.placements()[chair];
+    // Walk in from 2.5 m in front, facing the chair, in steps of 0.5 m, then fall.
+    let path: Vec<f64> = vec![2.5, 2.0, 1.5, 1.0];
+    let mut totals = Vec::new();
+    for on_fall in [SitFall::Keep, SitFall::Forfeit] {
+        let spec = TaskSpec::Sit { seat: chair, hold_s: 3.0, facing: 1.0, approach, on_fall };
+        let mut state = spec.new_state(60.0);
+        let mut rng = EnvRng::seed_from_u64(1);
+        world.place_standing(pl.pos[0] + path[0], pl.pos[1], pl.yaw + std::f64::consts::PI);
+        state.begin(&spec, world, &mut rng, &EpisodeOverride::default());
+        let start = sit_potential(world, chair, &approach);
+        let mut sum = 0.0;
+        for &x in &path[1..] {
+            world.place_standing(pl.pos[0] + x, pl.pos[1], pl.yaw + std::f64::consts::PI);
+            let r = state.decision_reward(&spec, world, false, 0.5);
+            assert!(r > 0.0, "walking towards the chair pays: {r}");
+            sum += f64::from(r);
+        }
+        let walked = start - sit_potential(world, chair, &approach);
+        assert!((sum - walked).abs() < 1e-4, "the approach reward telescopes: {sum} against {walked}");
+        // A copy of the episode carries what was paid.
+        let mut copy = spec.new_state(60.0);
+        copy.restore(&state.snapshot());
+        let fall = state.decision_reward(&spec, world, true, 0.5);
+        let copied = copy.decision_reward(&spec, world, true, 0.5);
+        assert_eq!(fall, copied, "the restored copy forfeits the same");
+        totals.push((sum, f64::from(fall)));
+    }
+    let (kept, keep_fall) = totals[0];
+    let (_, forfeit_fall) = totals[1];
+    assert!(kept > 1.0 && keep_fall == 0.0, "Keep: the walk's {kept} stays, the fall pays {keep_fall}");
+    assert!((forfeit_fall + kept).abs() < 1e-4, "Forfeit: the fall pays back {forfeit_fall} of {kept}");
+}

@@ -483,6 +483,9 @@ pub enum Task {
         /// What the meta-controller's reward pays for before the character is seated.
         #[serde(default)]
         approach: SitApproach,
+        /// What a fall does to the approach reward already paid.
+        #[serde(default)]
+        on_fall: SitFall,
     },
     /// Catch & Carry's warehouse: go to the pedestal holding the box, lift the box, carry it to
     /// another pedestal, put it down, and again (GOTO → LIFT → CARRY → PUTDOWN → GOTO …).
@@ -515,6 +518,18 @@ pub enum SitApproach {
         /// Metres of distance one radian of heading error counts as.
         heading_m: f64,
     },
+}
+
+/// What a fall does to the sit task's approach reward.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum SitFall {
+    /// The sitting paper's: the episode ends and keeps what it earned, so falling towards the
+    /// seat (or turning to face away from it and falling) pays as much as walking there.
+    #[default]
+    Keep,
+    /// The fall's decision pays back, negated, every approach reward the episode earned: a fallen
+    /// character made no progress. What a seated decision earned stays.
+    Forfeit,
 }
 
 /// A phase of the warehouse task, in the order they repeat.
@@ -853,22 +868,20 @@ impl ScenarioFile {
         }
 
         match &s.task {
-            Task::Sit { seat, hold_s, time_limit_s, facing_deg, approach } => {
+            Task::Sit { seat, hold_s, time_limit_s, facing_deg, approach, .. } => {
                 if !(*facing_deg > 0.0 && *facing_deg <= 180.0) {
                     return Err(self.invalid(
                         Some("facing_deg"),
                         format!("the sit task's facing_deg must be in (0, 180], got {facing_deg}"),
                     ));
                 }
-                if let SitApproach::Spot { ahead_m, heading_m } = approach {
-                    if !(ahead_m.is_finite() && *ahead_m >= 0.0 && heading_m.is_finite() && *heading_m >= 0.0) {
-                        return Err(self.invalid(
-                            Some("approach"),
-                            format!(
-                                "the sit task's Spot approach needs ahead_m and heading_m ≥ 0, got {ahead_m} and {heading_m}"
-                            ),
-                        ));
-                    }
+                if let SitApproach::Spot { ahead_m, heading_m } = approach
+                    && !(ahead_m.is_finite() && *ahead_m >= 0.0 && heading_m.is_finite() && *heading_m >= 0.0)
+                {
+                    return Err(self.invalid(
+                        Some("approach"),
+                        format!("the sit task's Spot approach needs ahead_m and heading_m ≥ 0, got {ahead_m} and {heading_m}"),
+                    ));
                 }
                 match self.prop(seat) {
                     Some(Prop::Chair(_)) => {}

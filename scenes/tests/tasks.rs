@@ -3,7 +3,7 @@
 
 use rand::SeedableRng;
 use rand::rngs::StdRng;
-use repertoire_scenes::scenario::{SitApproach, Task, WarehousePhase};
+use repertoire_scenes::scenario::{SitApproach, SitFall, Task, WarehousePhase};
 use repertoire_scenes::{Location, ScenarioFile, SceneError, WorldModel};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -194,6 +194,20 @@ fn prop_bindings_parse_and_bad_ones_are_located() {
         let msg = parse(&text).err().unwrap_or_else(|| panic!("accepted {bad}")).to_string();
         assert!(msg.starts_with("task.ron:") && msg.contains("approach"), "{bad} → {msg}");
     }
+
+    // What a fall does to the approach reward: kept (the paper's) by default, or forfeited.
+    match parse(&format!("{HEAD}\n    {sit}\n)")).unwrap().scenario.task {
+        Task::Sit { on_fall, .. } => assert_eq!(on_fall, SitFall::Keep),
+        other => panic!("{other:?}"),
+    }
+    let text = format!("{HEAD}\n    task: Sit(seat: \"chair\", on_fall: Forfeit),\n)");
+    match parse(&text).unwrap().scenario.task {
+        Task::Sit { on_fall, .. } => assert_eq!(on_fall, SitFall::Forfeit),
+        other => panic!("{other:?}"),
+    }
+    let text = format!("{HEAD}\n    task: Sit(seat: \"chair\", on_fall: Refund),\n)");
+    let msg = parse(&text).err().map(|e| e.to_string()).unwrap_or_else(|| panic!("accepted an unknown on_fall"));
+    assert!(msg.starts_with("task.ron:") && msg.contains("Refund"), "{msg}");
 }
 
 #[test]

@@ -132,7 +132,7 @@ pub enum LatentCommand {
         #[arg(long, default_value = DEFAULT_LIBRARY)]
         library: PathBuf,
         /// PPO iterations.
-        #[arg(long, default_value_t = 1500)]
+        #[arg(long, default_value_t = 1500, value_parser = crate::cli::at_least_one)]
         iterations: usize,
         /// Parallel environments.
         #[arg(long, default_value_t = 16)]

@@ -77,7 +77,7 @@ pub enum MetaCommand {
         #[arg(long)]
         run_dir: Option<PathBuf>,
         /// PPO iterations.
-        #[arg(long, default_value_t = 200)]
+        #[arg(long, default_value_t = 200, value_parser = crate::cli::at_least_one)]
         iterations: usize,
         /// Parallel environments.
         #[arg(long, default_value_t = 16)]

@@ -68,7 +68,7 @@ pub enum Command {
         #[arg(long, value_delimiter = ',')]
         seeds: Vec<u64>,
         /// Override the study's meta-controller iterations per run.
-        #[arg(long)]
+        #[arg(long, value_parser = crate::cli::at_least_one)]
         iterations: Option<usize>,
         /// Override the study's evaluation trials per zone.
         #[arg(long)]
@@ -83,6 +83,15 @@ pub enum Command {
 }
 
 /// Dispatches one parsed command line.
+/// A count that must be at least 1 (`--iterations`): 0 would silently run one iteration.
+pub fn at_least_one(s: &str) -> std::result::Result<usize, String> {
+    match s.parse::<usize>() {
+        Ok(0) => Err("must be at least 1".to_string()),
+        Ok(n) => Ok(n),
+        Err(e) => Err(e.to_string()),
+    }
+}
+
 pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Run(args) => run::run(args),

@@ -2,7 +2,7 @@
 
 use anyhow::Result;
 use clap::Subcommand;
-use repertoire_scenes::scenario::{Facing, Prop, PropBinding, SitApproach, Task};
+use repertoire_scenes::scenario::{Facing, Prop, PropBinding, SitApproach, SitFall, Task};
 use repertoire_scenes::{Param, WorldModel};
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -147,13 +147,17 @@ fn on(base: &Option<String>) -> String {
 /// One line for people: what the task asks and how it is judged.
 fn describe_task(task: &Task) -> String {
     match task {
-        Task::Sit { seat, hold_s, time_limit_s, facing_deg, approach } => format!(
+        Task::Sit { seat, hold_s, time_limit_s, facing_deg, approach, on_fall } => format!(
             "Sit on `{seat}`: pelvis on the seat, facing within {facing_deg}° of the chair's front, for {hold_s} s \
-             within {time_limit_s} s; {}",
+             within {time_limit_s} s; {}{}",
             match approach {
                 SitApproach::Seat => "rewarded for approaching the seat".to_string(),
                 SitApproach::Spot { ahead_m, .. } =>
                     format!("rewarded for approaching the spot {ahead_m} m in front of the seat, facing away from it"),
+            },
+            match on_fall {
+                SitFall::Keep => "",
+                SitFall::Forfeit => "; a fall forfeits that reward",
             }
         ),
         Task::Warehouse(w) => format!(

@@ -115,7 +115,7 @@ pub struct TrainArgs {
     #[arg(long)]
     run_dir: Option<PathBuf>,
     /// PPO iterations (default: the spec's).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::cli::at_least_one)]
     iterations: Option<usize>,
     /// Parallel environments (default: the spec's).
     #[arg(long)]
