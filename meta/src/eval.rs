@@ -356,16 +356,13 @@ impl MetaReport {
     /// How trials ended, grouped by the skill playing at the end (where the falls happen), in
     /// the order of [`MetaReport::skills`].
     pub fn endings(&self) -> Vec<Ending> {
-        let last = |t: &Trial| t.skills.last().cloned().unwrap_or_else(|| "none".to_string());
-        let mut names: Vec<String> = self.skills.clone();
-        for t in &self.trials {
-            let l = last(t);
-            if !names.contains(&l) {
-                names.push(l);
-            }
+        fn last(t: &Trial) -> &str {
+            t.skills.last().map_or("none", String::as_str)
         }
-        names
-            .into_iter()
+        self.skills
+            .iter()
+            .map(String::as_str)
+            .chain(std::iter::once("none"))
             .filter_map(|skill| {
                 let ts: Vec<&Trial> = self.trials.iter().filter(|t| last(t) == skill).collect();
                 if ts.is_empty() {
@@ -379,7 +376,7 @@ impl MetaReport {
                     falls,
                     timeouts: ts.len() - successes - falls,
                     min_distance_mean: ts.iter().map(|t| t.min_distance).sum::<f64>() / ts.len() as f64,
-                    skill,
+                    skill: skill.to_string(),
                 })
             })
             .collect()
