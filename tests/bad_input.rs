@@ -57,6 +57,10 @@ fn inconsistent_values_are_explained() {
         ("Scenario(name: \"x\", props: [Chair(name: \"c\"), Box(name: \"c\")])", "two props are named `c`"),
         ("Scenario(name: \"x\", props: [Ball(name: \"b\"), Box(name: \"k\", on: \"b\")])", "not on ball `b`"),
         ("Scenario(name: \"x\", curriculum: (zones: [\"front\"]))", "curriculum names zone `front`"),
+        (
+            "Scenario(name: \"x\", props: [Chair(name: \"c\")], spawn: [Zone(name: \"z\", around: \"c\", radius: 1.0, angle_deg: 0.0)], curriculum: (zones: [\"z\"], max_episodes: Some(0)))",
+            "`max_episodes` must be at least 1",
+        ),
     ] {
         let err = load(&dir, text).err().unwrap_or_else(|| panic!("accepted: {text}"));
         assert!(err.to_string().contains(expect), "{text}\n→ {err}");

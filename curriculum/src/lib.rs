@@ -3,7 +3,8 @@
 //! [`ZoneCurriculum`]: training starts in the scenario's easiest spawn zone and moves to the next
 //! when the success rate over the last `window` episodes reaches `advance_at` (the sitting
 //! paper's front → sides → behind schedule); zones already passed stay open unless the scenario
-//! says `keep_passed: false`. Every switch is recorded with the episode count at
+//! says `keep_passed: false`. With `max_episodes` a zone also closes its turn once that many
+//! episodes have been spent in it, whatever its success rate. Every switch is recorded with the episode count at
 //! which it happened, so a run's schedule can be read back. Reference-state initialisation and
 //! end-pose pools live with the skills (`repertoire_skill::imitation`, `repertoire_skill::pool`).
 
@@ -21,8 +22,32 @@ pub struct Advance {
     pub from: String,
     /// The zone entered.
     pub to: String,
-    /// The windowed success rate that triggered it.
+    /// The success rate over the current window when it happened (over the episodes so far
+    /// when a budget ran out before a full window).
     pub success_rate: f64,
+    /// What moved training on.
+    #[serde(default)]
+    pub reason: AdvanceReason,
+}
+
+/// Why the curriculum moved to the next zone.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum AdvanceReason {
+    /// The windowed success rate reached `advance_at`.
+    #[default]
+    Threshold,
+    /// The zone's `max_episodes` were spent first.
+    Budget,
+}
+
+impl AdvanceReason {
+    /// For logs and tables: `threshold` or `budget`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            AdvanceReason::Threshold => "threshold",
+            AdvanceReason::Budget => "budget",
+        }
+    }
 }
 
 /// A spawn-zone curriculum over a scenario's zones.
@@ -36,6 +61,12 @@ pub struct ZoneCurriculum {
     /// Outcomes of the last `window` episodes since the last switch (in every open zone).
     recent: VecDeque<bool>,
     episodes: u64,
+    /// Episodes recorded since the current zone opened.
+    #[serde(default)]
+    in_zone: u64,
+    /// Episodes a zone may take before training moves on regardless of success.
+    #[serde(default)]
+    max_episodes: Option<u64>,
     /// Every switch so far.
     pub history: Vec<Advance>,
     /// When false, every zone is open from the start (the "no curriculum" ablation).
@@ -55,6 +86,8 @@ impl ZoneCurriculum {
             current: if enabled { 0 } else { spec.zones.len().saturating_sub(1) },
             recent: VecDeque::with_capacity(spec.window.max(1)),
             episodes: 0,
+            in_zone: 0,
+            max_episodes: spec.max_episodes,
             history: Vec::new(),
             enabled,
             keep_passed: spec.keep_passed,
@@ -113,29 +146,38 @@ impl ZoneCurriculum {
             .then(|| self.recent.iter().filter(|&&s| s).count() as f64 / self.window as f64)
     }
 
+    /// Episodes a zone may take before training moves on regardless of its success rate.
+    pub fn max_episodes(&self) -> Option<u64> {
+        self.max_episodes
+    }
+
     /// Records one finished episode; returns the switch when this episode completes a full
-    /// window whose success rate is at least `advance_at` (the window then starts afresh in
-    /// the next zone).
+    /// window whose success rate is at least `advance_at`, or is the zone's `max_episodes`-th
+    /// (the window then starts afresh in the next zone).
     pub fn record(&mut self, success: bool) -> Option<Advance> {
         self.episodes += 1;
         if !self.enabled || self.finished() {
             return None;
         }
+        self.in_zone += 1;
         if self.recent.len() == self.window {
             self.recent.pop_front();
         }
         self.recent.push_back(success);
-        let rate = self.success_rate()?;
-        if rate < self.advance_at {
-            return None;
-        }
+        let reason = match self.success_rate() {
+            Some(rate) if rate >= self.advance_at => AdvanceReason::Threshold,
+            _ if self.max_episodes.is_some_and(|m| self.in_zone >= m) => AdvanceReason::Budget,
+            _ => return None,
+        };
         let advance = Advance {
             episode: self.episodes,
             from: self.zones[self.current].clone(),
             to: self.zones[self.current + 1].clone(),
-            success_rate: rate,
+            success_rate: self.window_rate().unwrap_or(0.0),
+            reason,
         };
         self.current += 1;
+        self.in_zone = 0;
         self.recent.clear();
         self.history.push(advance.clone());
         Some(advance)
@@ -152,6 +194,7 @@ mod tests {
             advance_at: 0.8,
             window: 10,
             keep_passed: true,
+            max_episodes: None,
         }
     }
 
@@ -201,5 +244,35 @@ mod tests {
         assert_eq!(c.record(true), None);
         let off = ZoneCurriculum::new(&spec(), false);
         assert_eq!(off.open_zones(), ["front", "sides", "behind"]);
+    }
+
+    #[test]
+    fn a_zone_budget_moves_on_at_its_last_episode_and_the_threshold_still_wins_earlier() {
+        let mut c = ZoneCurriculum::new(&Curriculum { max_episodes: Some(25), ..spec() }, true);
+        // Never a success: the threshold cannot open the sides; the 25th episode does.
+        for k in 1..25 {
+            assert_eq!(c.record(false), None, "episode {k} is inside the budget");
+        }
+        let a = c.record(false).expect("the 25th episode spends the front zone's budget");
+        assert_eq!((a.from.as_str(), a.to.as_str(), a.episode), ("front", "sides", 25));
+        assert_eq!(a.reason, AdvanceReason::Budget);
+        assert_eq!(a.success_rate, 0.0);
+        assert_eq!(c.open_zones(), ["front", "sides"]);
+        // In the sides the threshold comes first: 8 successes in the first window of 10.
+        let mut switched = None;
+        for k in 0..10 {
+            if let Some(a) = c.record(k >= 2) {
+                switched = Some((k, a));
+            }
+        }
+        let (k, a) = switched.expect("the threshold is reached inside the budget");
+        assert_eq!(k, 9, "at the end of the first full window");
+        assert_eq!((a.reason, a.episode), (AdvanceReason::Threshold, 35));
+        assert!((a.success_rate - 0.8).abs() < 1e-12);
+        assert!(c.finished());
+        // Without a budget, 1000 failures never move on.
+        let mut never = ZoneCurriculum::new(&spec(), true);
+        assert!((0..1000).all(|_| never.record(false).is_none()));
+        assert_eq!(never.current(), "front");
     }
 }

@@ -22,5 +22,5 @@ pub use env::{MetaEnv, MetaSetup};
 pub use error::{MetaError, Result};
 pub use graph::SkillGraph;
 pub use judge::SitJudge;
-pub use repertoire_curriculum::Advance;
+pub use repertoire_curriculum::{Advance, AdvanceReason};
 pub use task::{EpisodeOverride, TaskSpec, TaskState};

@@ -209,11 +209,24 @@ fn seat_distance(world: &World, seat: usize) -> f64 {
 pub fn sit_potential(world: &World, seat: usize, approach: &SitApproach) -> f64 {
     match approach {
         SitApproach::Seat => seat_distance(world, seat),
-        SitApproach::Spot { ahead_m, heading_m } => {
+        SitApproach::Spot { ahead_m, heading_m, turn_within_m } => {
             let p = world.pelvis_frame().pos;
             let pl = world.placements()[seat];
             let spot = [pl.pos[0] + ahead_m * pl.yaw.cos(), pl.pos[1] + ahead_m * pl.yaw.sin()];
-            (p[0] - spot[0]).hypot(p[1] - spot[1]) + heading_m * wrap_angle(world.heading() - pl.yaw).abs()
+            let d = (p[0] - spot[0]).hypot(p[1] - spot[1]);
+            let heading = world.heading();
+            let away = wrap_angle(heading - pl.yaw).abs();
+            let error = match turn_within_m {
+                // Blending the two errors (not the two headings) keeps Φ continuous: the bearing
+                // jumps only at the spot itself, where its weight is zero.
+                Some(r) => {
+                    let far = (d / r).min(1.0);
+                    let toward = wrap_angle(heading - (spot[1] - p[1]).atan2(spot[0] - p[0])).abs();
+                    (1.0 - far) * away + far * toward
+                }
+                None => away,
+            };
+            d + heading_m * error
         }
     }
 }

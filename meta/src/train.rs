@@ -212,7 +212,7 @@ impl<'a> Schedule<'a> {
         let Some(c) = &mut self.curriculum else { return Ok(()) };
         for e in episodes {
             if let Some(a) = c.record(e.terms[0] > 0.5) {
-                tracing::info!(from = %a.from, to = %a.to, episode = a.episode, rate = a.success_rate, "curriculum advances");
+                tracing::info!(from = %a.from, to = %a.to, episode = a.episode, rate = a.success_rate, reason = a.reason.as_str(), "curriculum advances");
                 *self.zones.write().expect("never poisoned") = c.open_zones().to_vec();
             }
         }

@@ -476,7 +476,7 @@ fn the_spot_approach_pays_for_arriving_where_the_sit_starts() {
         (ahead + 0.4).abs() < 0.05 && left.abs() < 0.05 && yaw.abs() < 0.05,
         "the seat 0.4 m behind: {ahead} {left} {yaw}"
     );
-    let spot = SitApproach::Spot { ahead_m: 0.4, heading_m: 0.3 };
+    let spot = SitApproach::Spot { ahead_m: 0.4, heading_m: 0.3, turn_within_m: None };
     let mut env = s.env();
     ImitationTask::new(s.settings.clone()).place_at_frame(env.world_mut(), 0, 0.4, -0.3, 0.7);
     let world = env.world_mut();
@@ -495,6 +495,48 @@ fn the_spot_approach_pays_for_arriving_where_the_sit_starts() {
 }
 
 #[test]
+fn with_turn_within_m_the_spot_approach_pays_for_facing_the_spot_far_off_and_the_chairs_way_at_it() {
+    // Without `turn_within_m` the heading term always wants the chair's way (the seat behind),
+    // so turning away from the chair 2.5 m off pays heading_m · π at once. With it, far off the
+    // heading that counts is the bearing to the spot, at the spot the chair's way, blended in
+    // between; the potential stays continuous across the chair's axis.
+    use repertoire_meta::task::sit_potential;
+    use repertoire_scenes::SitApproach;
+    use std::f64::consts::PI;
+    let specs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../skills/skill/specs");
+    let s = SkillSetup::new(SpecFile::load(&specs.join("sit.ron")).expect("spec"), library()).expect("sit");
+    let (chair, _) = s.settings.seat.expect("sit has a seat");
+    let fixed = SitApproach::Spot { ahead_m: 0.4, heading_m: 0.3, turn_within_m: None };
+    let turning = SitApproach::Spot { ahead_m: 0.4, heading_m: 0.3, turn_within_m: Some(1.5) };
+    let mut env = s.env();
+    let world = env.world_mut();
+    let pl = world.placements()[chair];
+    let (u, v) = ([pl.yaw.cos(), pl.yaw.sin()], [-pl.yaw.sin(), pl.yaw.cos()]);
+    // The pelvis `ahead` metres in front of the spot and `side` metres to its left, facing the
+    // chair (`toward`) or the chair's way.
+    let mut at = |ahead: f64, side: f64, toward: bool, approach: &SitApproach| {
+        let a = 0.4 + ahead;
+        let yaw = if toward { pl.yaw + PI } else { pl.yaw };
+        world.place_standing(pl.pos[0] + a * u[0] + side * v[0], pl.pos[1] + a * u[1] + side * v[1], yaw);
+        sit_potential(world, chair, approach)
+    };
+    let h = 0.3 * PI;
+    let close =
+        |got: f64, want: f64, what: &str| assert!((got - want).abs() < 0.05, "{what}: {got}, want about {want}");
+    close(at(2.5, 0.0, true, &fixed), 2.5 + h, "facing the chair 2.5 m off, fixed heading");
+    close(at(2.5, 0.0, false, &fixed), 2.5, "turned away 2.5 m off, fixed heading");
+    close(at(2.5, 0.0, true, &turning), 2.5, "facing the chair 2.5 m off, turning within 1.5 m");
+    close(at(2.5, 0.0, false, &turning), 2.5 + h, "turned away 2.5 m off, turning within 1.5 m");
+    close(at(0.0, 0.0, false, &turning), 0.0, "at the spot, the seat behind");
+    close(at(0.0, 0.0, true, &turning), h, "at the spot, facing the chair");
+    // Half way into the radius the two errors count half each.
+    close(at(0.75, 0.0, true, &turning), 0.75 + 0.5 * h, "0.75 m off facing the chair");
+    // Continuous across the axis, where the bearing's error wraps.
+    let (left, right) = (at(0.75, 0.01, true, &turning), at(0.75, -0.01, true, &turning));
+    assert!((left - right).abs() < 0.01, "either side of the axis: {left} against {right}");
+}
+
+#[test]
 fn a_fall_forfeits_the_approach_reward_only_when_the_scenario_says_so() {
     // `on_fall: Forfeit`: the decision that ends in a fall pays back, negated, the approach
     // reward the episode earned, so walking towards the chair and falling earns nothing;
@@ -505,7 +547,7 @@ fn a_fall_forfeits_the_approach_reward_only_when_the_scenario_says_so() {
     let specs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../skills/skill/specs");
     let s = SkillSetup::new(SpecFile::load(&specs.join("sit.ron")).expect("spec"), library()).expect("sit");
     let (chair, _) = s.settings.seat.expect("sit has a seat");
-    let approach = SitApproach::Spot { ahead_m: 0.4, heading_m: 0.3 };
+    let approach = SitApproach::Spot { ahead_m: 0.4, heading_m: 0.3, turn_within_m: None };
     let mut env = s.env();
     let world = env.world_mut();
     let pl = world.placements()[chair];

@@ -517,6 +517,13 @@ pub enum SitApproach {
         ahead_m: f64,
         /// Metres of distance one radian of heading error counts as.
         heading_m: f64,
+        /// With it, the heading that counts depends on the distance `d`: from `d ≥ turn_within_m`
+        /// the error is measured from the bearing towards the spot (walk there), at the spot
+        /// from the way the chair faces (turn there), and the two errors are blended linearly
+        /// in between, so turning away from the chair far from it costs instead of paying.
+        /// `None` (the default): always from the way the chair faces.
+        #[serde(default)]
+        turn_within_m: Option<f64>,
     },
 }
 
@@ -685,7 +692,8 @@ impl Task {
     }
 }
 
-/// The zone curriculum: start in the first zone, move on when the success rate is high enough.
+/// The zone curriculum: start in the first zone, move on when the success rate is high enough
+/// (or, with `max_episodes`, when the zone's episode budget is spent).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Curriculum {
@@ -702,6 +710,12 @@ pub struct Curriculum {
     /// current zone.
     #[serde(default = "Curriculum::default_keep_passed")]
     pub keep_passed: bool,
+    /// Also move on after this many episodes in a zone even if its success rate never reached
+    /// `advance_at` (a budget per zone, so that a threshold the skills cannot reach yet does not
+    /// hold training in the first zone for the whole run); `None` (the default): only the
+    /// threshold moves on, the sitting paper's rule.
+    #[serde(default)]
+    pub max_episodes: Option<u64>,
 }
 
 impl Curriculum {
@@ -875,13 +889,23 @@ impl ScenarioFile {
                         format!("the sit task's facing_deg must be in (0, 180], got {facing_deg}"),
                     ));
                 }
-                if let SitApproach::Spot { ahead_m, heading_m } = approach
-                    && !(ahead_m.is_finite() && *ahead_m >= 0.0 && heading_m.is_finite() && *heading_m >= 0.0)
-                {
-                    return Err(self.invalid(
-                        Some("approach"),
-                        format!("the sit task's Spot approach needs ahead_m and heading_m ≥ 0, got {ahead_m} and {heading_m}"),
-                    ));
+                if let SitApproach::Spot { ahead_m, heading_m, turn_within_m } = approach {
+                    if !(ahead_m.is_finite() && *ahead_m >= 0.0 && heading_m.is_finite() && *heading_m >= 0.0) {
+                        return Err(self.invalid(
+                            Some("approach"),
+                            format!(
+                                "the sit task's Spot approach needs ahead_m and heading_m ≥ 0, got {ahead_m} and {heading_m}"
+                            ),
+                        ));
+                    }
+                    if let Some(r) = turn_within_m
+                        && !(r.is_finite() && *r > 0.0)
+                    {
+                        return Err(self.invalid(
+                            Some("turn_within_m"),
+                            format!("the sit task's Spot approach needs turn_within_m > 0 (metres), got {r}"),
+                        ));
+                    }
                 }
                 match self.prop(seat) {
                     Some(Prop::Chair(_)) => {}
@@ -978,6 +1002,12 @@ impl ScenarioFile {
                 return Err(self.invalid(
                     Some("advance_at"),
                     "the curriculum needs 0 < advance_at <= 1 and a window of at least 1 episode",
+                ));
+            }
+            if c.max_episodes == Some(0) {
+                return Err(self.invalid(
+                    Some("max_episodes"),
+                    "the curriculum's `max_episodes` must be at least 1 (leave it out to move on only at `advance_at`)",
                 ));
             }
         }

@@ -186,7 +186,9 @@ fn prop_bindings_parse_and_bad_ones_are_located() {
     }
     let text = format!("{HEAD}\n    task: Sit(seat: \"chair\", approach: Spot(ahead_m: 0.4, heading_m: 0.3)),\n)");
     match parse(&text).unwrap().scenario.task {
-        Task::Sit { approach, .. } => assert_eq!(approach, SitApproach::Spot { ahead_m: 0.4, heading_m: 0.3 }),
+        Task::Sit { approach, .. } => {
+            assert_eq!(approach, SitApproach::Spot { ahead_m: 0.4, heading_m: 0.3, turn_within_m: None })
+        }
         other => panic!("{other:?}"),
     }
     for bad in ["Spot(ahead_m: -0.4, heading_m: 0.3)", "Spot(ahead_m: 0.4, heading_m: -1.0)"] {
@@ -255,14 +257,16 @@ fn every_shipped_scenario_builds_and_the_paper_reward_variant_differs_from_sit_o
     assert!(built.len() >= 5 && built.iter().any(|n| n == "sit_paper_reward.ron"), "{built:?}");
     let sit = ScenarioFile::load(shipped("sit.ron")).unwrap().scenario;
     match &sit.task {
-        Task::Sit { approach, .. } => assert_eq!(*approach, SitApproach::Spot { ahead_m: 0.4, heading_m: 0.3 }),
+        Task::Sit { approach, .. } => {
+            assert_eq!(*approach, SitApproach::Spot { ahead_m: 0.4, heading_m: 0.3, turn_within_m: None })
+        }
         other => panic!("{other:?}"),
     }
     let mut paper = ScenarioFile::load(shipped("sit_paper_reward.ron")).unwrap().scenario;
     match &mut paper.task {
         Task::Sit { approach, .. } => {
             assert_eq!(*approach, SitApproach::Seat);
-            *approach = SitApproach::Spot { ahead_m: 0.4, heading_m: 0.3 };
+            *approach = SitApproach::Spot { ahead_m: 0.4, heading_m: 0.3, turn_within_m: None };
         }
         other => panic!("{other:?}"),
     }

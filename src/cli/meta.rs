@@ -705,11 +705,15 @@ fn print_training(
     );
     for a in advances {
         println!(
-            "curriculum: {} → {} after {} episodes (success {:.0}%)",
+            "curriculum: {} → {} after {} episodes (success {:.0}%{})",
             a.from,
             a.to,
             a.episode,
-            100.0 * a.success_rate
+            100.0 * a.success_rate,
+            match a.reason {
+                repertoire_meta::AdvanceReason::Threshold => "",
+                repertoire_meta::AdvanceReason::Budget => "; the zone's episode budget was spent",
+            }
         );
     }
 }

@@ -128,10 +128,11 @@ fn check(file: Option<PathBuf>) -> Result<()> {
     }
     match &s.curriculum {
         Some(c) => println!(
-            "curriculum {} (advance at {:.0} % over {} episodes{})",
+            "curriculum {} (advance at {:.0} % over {} episodes{}{})",
             c.zones.join(" → "),
             c.advance_at * 100.0,
             c.window,
+            c.max_episodes.map_or_else(String::new, |m| format!(" or after {m} episodes in a zone")),
             if c.keep_passed { ", passed zones stay open" } else { ", one zone at a time" }
         ),
         None => println!("curriculum none"),
@@ -152,8 +153,12 @@ fn describe_task(task: &Task) -> String {
              within {time_limit_s} s; {}{}",
             match approach {
                 SitApproach::Seat => "rewarded for approaching the seat".to_string(),
-                SitApproach::Spot { ahead_m, .. } =>
+                SitApproach::Spot { ahead_m, turn_within_m: None, .. } =>
                     format!("rewarded for approaching the spot {ahead_m} m in front of the seat, facing away from it"),
+                SitApproach::Spot { ahead_m, turn_within_m: Some(r), .. } => format!(
+                    "rewarded for approaching the spot {ahead_m} m in front of the seat, facing it beyond {r} m \
+                     and turning within"
+                ),
             },
             match on_fall {
                 SitFall::Keep => "",
