@@ -61,9 +61,6 @@ pub struct ZoneCurriculum {
     /// Outcomes of the last `window` episodes since the last switch (in every open zone).
     recent: VecDeque<bool>,
     episodes: u64,
-    /// Episodes recorded since the current zone opened.
-    #[serde(default)]
-    in_zone: u64,
     /// Episodes a zone may take before training moves on regardless of success.
     #[serde(default)]
     max_episodes: Option<u64>,
@@ -86,7 +83,6 @@ impl ZoneCurriculum {
             current: if enabled { 0 } else { spec.zones.len().saturating_sub(1) },
             recent: VecDeque::with_capacity(spec.window.max(1)),
             episodes: 0,
-            in_zone: 0,
             max_episodes: spec.max_episodes,
             history: Vec::new(),
             enabled,
@@ -151,6 +147,11 @@ impl ZoneCurriculum {
         self.max_episodes
     }
 
+    /// Episodes recorded since the current zone opened.
+    pub fn episodes_in_zone(&self) -> u64 {
+        self.episodes - self.history.last().map_or(0, |a| a.episode)
+    }
+
     /// Records one finished episode; returns the switch when this episode completes a full
     /// window whose success rate is at least `advance_at`, or is the zone's `max_episodes`-th
     /// (the window then starts afresh in the next zone).
@@ -159,14 +160,13 @@ impl ZoneCurriculum {
         if !self.enabled || self.finished() {
             return None;
         }
-        self.in_zone += 1;
         if self.recent.len() == self.window {
             self.recent.pop_front();
         }
         self.recent.push_back(success);
         let reason = match self.success_rate() {
             Some(rate) if rate >= self.advance_at => AdvanceReason::Threshold,
-            _ if self.max_episodes.is_some_and(|m| self.in_zone >= m) => AdvanceReason::Budget,
+            _ if self.max_episodes.is_some_and(|m| self.episodes_in_zone() >= m) => AdvanceReason::Budget,
             _ => return None,
         };
         let advance = Advance {
@@ -177,7 +177,6 @@ impl ZoneCurriculum {
             reason,
         };
         self.current += 1;
-        self.in_zone = 0;
         self.recent.clear();
         self.history.push(advance.clone());
         Some(advance)

@@ -437,9 +437,7 @@ fn seated_means_on_the_seat_facing_the_chairs_front_not_any_contact() {
     // character now faces its backrest, as after falling forward onto the seat) is contact,
     // but not sitting, unless the scenario counts any contact (`facing_deg: 180`).
     use repertoire_skill::imitation::ImitationTask;
-    let specs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../skills/skill/specs");
-    let s = SkillSetup::new(SpecFile::load(&specs.join("sit.ron")).expect("spec"), library()).expect("sit");
-    let (chair, _) = s.settings.seat.expect("sit has a seat");
+    let (s, chair) = sit_skill();
     let r = &s.settings.reference;
     let mut env = s.env();
     ImitationTask::new(s.settings.clone()).place_at_frame(env.world_mut(), 0, 0.4, -0.3, 0.7);
@@ -459,6 +457,14 @@ fn seated_means_on_the_seat_facing_the_chairs_front_not_any_contact() {
     assert!(world.seated_on(chair, std::f64::consts::PI), "facing_deg 180 counts any contact");
 }
 
+/// The library's sit skill and the index of its chair prop.
+fn sit_skill() -> (SkillSetup, usize) {
+    let specs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../skills/skill/specs");
+    let s = SkillSetup::new(SpecFile::load(&specs.join("sit.ron")).expect("spec"), library()).expect("sit");
+    let (chair, _) = s.settings.seat.expect("sit has a seat");
+    (s, chair)
+}
+
 #[test]
 fn the_spot_approach_pays_for_arriving_where_the_sit_starts() {
     // `SitApproach::Spot` measures the distance to the spot in front of the seat where the sit's
@@ -468,9 +474,7 @@ fn the_spot_approach_pays_for_arriving_where_the_sit_starts() {
     use repertoire_meta::task::sit_potential;
     use repertoire_scenes::SitApproach;
     use repertoire_skill::imitation::ImitationTask;
-    let specs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../skills/skill/specs");
-    let s = SkillSetup::new(SpecFile::load(&specs.join("sit.ron")).expect("spec"), library()).expect("sit");
-    let (chair, _) = s.settings.seat.expect("sit has a seat");
+    let (s, chair) = sit_skill();
     let [ahead, left, yaw] = s.seat_at_start().expect("a seat goal");
     assert!(
         (ahead + 0.4).abs() < 0.05 && left.abs() < 0.05 && yaw.abs() < 0.05,
@@ -503,9 +507,7 @@ fn with_turn_within_m_the_spot_approach_pays_for_facing_the_spot_far_off_and_the
     use repertoire_meta::task::sit_potential;
     use repertoire_scenes::SitApproach;
     use std::f64::consts::PI;
-    let specs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../skills/skill/specs");
-    let s = SkillSetup::new(SpecFile::load(&specs.join("sit.ron")).expect("spec"), library()).expect("sit");
-    let (chair, _) = s.settings.seat.expect("sit has a seat");
+    let (s, chair) = sit_skill();
     let fixed = SitApproach::Spot { ahead_m: 0.4, heading_m: 0.3, turn_within_m: None };
     let turning = SitApproach::Spot { ahead_m: 0.4, heading_m: 0.3, turn_within_m: Some(1.5) };
     let mut env = s.env();
@@ -544,9 +546,7 @@ fn a_fall_forfeits_the_approach_reward_only_when_the_scenario_says_so() {
     // snapshot and restore (the planner's copies of an episode).
     use repertoire_meta::task::{EpisodeOverride, TaskSpec, sit_potential};
     use repertoire_scenes::{SitApproach, SitFall};
-    let specs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../skills/skill/specs");
-    let s = SkillSetup::new(SpecFile::load(&specs.join("sit.ron")).expect("spec"), library()).expect("sit");
-    let (chair, _) = s.settings.seat.expect("sit has a seat");
+    let (s, chair) = sit_skill();
     let approach = SitApproach::Spot { ahead_m: 0.4, heading_m: 0.3, turn_within_m: None };
     let mut env = s.env();
     let world = env.world_mut();
