@@ -17,8 +17,19 @@ use std::path::{Path, PathBuf};
 pub const SEATED_FACING_DEG: f64 = 60.0;
 
 /// The skills the project knows how to train; a scenario may list only these.
-pub const KNOWN_SKILLS: &[&str] =
-    &["walk", "walk_to", "turn_left", "turn_right", "sit", "lift", "carry", "put_down", "catch"];
+pub const KNOWN_SKILLS: &[&str] = &[
+    "walk",
+    "walk_to",
+    "turn_left",
+    "turn_right",
+    "turn_left_wide",
+    "turn_right_wide",
+    "sit",
+    "lift",
+    "carry",
+    "put_down",
+    "catch",
+];
 
 /// A whole scenario as written in its RON file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

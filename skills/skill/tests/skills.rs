@@ -48,7 +48,7 @@ fn every_shipped_spec_builds() {
 
 #[test]
 fn replaying_the_clip_scores_the_maximum_and_diverging_scores_less() {
-    for spec in ["walk.ron", "turn_left.ron", "turn_right.ron", "sit.ron", "sit_mocap.ron"] {
+    for spec in ["walk.ron", "turn_left.ron", "turn_right.ron", "turn_right_wide.ron", "sit.ron", "sit_mocap.ron"] {
         let s = setup(spec, &temp("replay"));
         let mut env = s.env();
         let mut task = ImitationTask::new(s.settings.clone());
@@ -88,6 +88,17 @@ fn turn_right_is_the_mirrored_left_turn() {
     let right = setup("turn_right.ron", &lib).settings.reference.heading_change().to_degrees();
     assert!(left > 40.0, "turn_left turns {left:.1}°");
     assert!((left + right).abs() < 1.0, "turn_right ({right:.1}°) mirrors turn_left ({left:.1}°)");
+}
+
+#[test]
+fn the_wide_turns_turn_about_a_right_angle_each_way() {
+    let lib = temp("wide-turns");
+    let right = setup("turn_right_wide.ron", &lib).settings.reference.heading_change().to_degrees();
+    let left = setup("turn_left_wide.ron", &lib).settings.reference.heading_change().to_degrees();
+    let narrow = setup("turn_right.ron", &lib).settings.reference.heading_change().to_degrees();
+    assert!((-110.0..-90.0).contains(&right), "turn_right_wide turns {right:.1}°");
+    assert!(right < narrow - 30.0, "turn_right_wide ({right:.1}°) is not wider than turn_right ({narrow:.1}°)");
+    assert!((left + right).abs() < 1.0, "turn_left_wide ({left:.1}°) mirrors turn_right_wide ({right:.1}°)");
 }
 
 #[test]

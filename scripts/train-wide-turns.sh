@@ -1,0 +1,44 @@
+#!/usr/bin/env bash
+# Adds the wide (±99°) turns to a trained skill library and fits the sit to them; the last stage
+# of `scripts/train-library.sh`, and what grew the shipped library's wide turns (stop 24):
+#   1. turn_left_wide and turn_right_wide from their specs (stage one, reference-state starts;
+#      WIDE_TURN_ITERS, the specs' 800);
+#   2. each fine-tuned from walk_to's end poses (the scenario's walk, which hands over to them;
+#      WIDE_TURN_FINETUNE_ITERS, 400), then evaluated from the clip start and from walk_to;
+#   3. the sit fine-tuned once more with `sit_reach.ron` from all four turns' end poses
+#      (SIT_WIDE_ITERS, 1000, 70 % of the episodes from the pools), then evaluated from them.
+# Usage: bash scripts/train-wide-turns.sh [LIBRARY] — env: TRIALS (1000), EXTRA (more arguments
+# for every train/finetune, e.g. "--envs 8"). The library's meta-controller pins the sit's
+# weights, so retrain it afterwards (`repertoire meta train --library LIBRARY --iterations 600`).
+set -euo pipefail
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$root"
+bash scripts/setup.sh
+cargo build --release --quiet
+bin="$root/target/release/repertoire"
+lib="${1:-skills/library}"
+trials="${TRIALS:-1000}"
+extra=(${EXTRA:-})
+specs=skills/skill/specs
+evals="$lib/evals.md"
+turns=turn_left,turn_right,turn_left_wide,turn_right_wide
+
+eval_skill() {
+  local out
+  out="$("$bin" skill eval "$@" --library "$lib" --trials "$trials")"
+  printf '%s\n' "$out"
+  printf '\n## `repertoire skill eval %s`\n\n%s\n' "$*" "$out" >> "$evals"
+}
+
+for s in turn_left_wide turn_right_wide; do
+  iters=()
+  [ -n "${WIDE_TURN_ITERS:-}" ] && iters=(--iterations "$WIDE_TURN_ITERS")
+  "$bin" skill train "$specs/$s.ron" --library "$lib" "${iters[@]}" "${extra[@]}"
+  "$bin" skill finetune "$specs/$s.ron" --from walk_to --iterations "${WIDE_TURN_FINETUNE_ITERS:-400}" \
+    --library "$lib" "${extra[@]}"
+  eval_skill "$specs/$s.ron" --from walk_to
+done
+"$bin" skill finetune "$specs/sit_reach.ron" --from "$turns" --fraction 0.7 --iterations "${SIT_WIDE_ITERS:-1000}" \
+  --library "$lib" "${extra[@]}"
+eval_skill "$specs/sit.ron" --from "$turns"
+echo "wide turns added to $lib (evaluations appended to $evals)"
