@@ -92,7 +92,7 @@ fn meta_train_eval_and_the_main_job() {
     let lib = dir.join("library");
     let lib_s = lib.to_str().unwrap();
     let spec = |name: &str| Path::new(env!("CARGO_MANIFEST_DIR")).join("skills/skill/specs").join(name);
-    for name in ["walk_to", "turn_left", "turn_right", "sit"] {
+    for name in ["walk_to", "turn_left", "turn_right", "turn_left_wide", "turn_right_wide", "sit"] {
         let run = dir.join(format!("run-{name}"));
         ok(&repertoire(&[
             "skill",
@@ -144,7 +144,7 @@ fn the_ablation_study_plans_one_described_run_per_variant_and_seed() {
     let dir = common::temp_dir("cli-ablate");
     let spec = Path::new(env!("CARGO_MANIFEST_DIR")).join("meta/ablations/sit.ron");
     let text = ok(&repertoire(&["ablate", spec.to_str().unwrap(), "--plan-only", "--out", dir.to_str().unwrap()]));
-    assert!(text.contains("27 runs planned"), "{text}");
+    assert!(text.contains("30 runs planned"), "{text}");
     let plan = std::fs::read_to_string(dir.join("runs/flat--the-sit-policy-alone-s1/plan.ron")).expect("plan file");
     assert!(plan.contains("\"--chain\"") && plan.contains("\"sit\""), "{plan}");
     // The budget can be overridden for a quick pass.
@@ -160,7 +160,7 @@ fn the_ablation_study_plans_one_described_run_per_variant_and_seed() {
         "--iterations",
         "5",
     ]));
-    assert!(text.contains("9 runs planned"), "{text}");
+    assert!(text.contains("10 runs planned"), "{text}");
     let plan = std::fs::read_to_string(quick.join("runs/full-model-s7/plan.ron")).expect("plan file");
     let compact: String = plan.split_whitespace().collect();
     assert!(compact.contains("\"--iterations\",\"5\"") && compact.contains("\"--seed\",\"7\""), "{plan}");

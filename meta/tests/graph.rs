@@ -8,12 +8,15 @@ use repertoire_scenes::ScenarioFile;
 fn the_default_graph_follows_the_scenario() {
     let s = ScenarioFile::builtin_default();
     let g = SkillGraph::of(&s.scenario);
-    assert_eq!(g.names(), ["walk_to", "turn_left", "turn_right", "sit"]);
-    let (walk, left, right, sit) = (0, 1, 2, 3);
+    assert_eq!(g.names(), ["walk_to", "turn_left", "turn_right", "turn_left_wide", "turn_right_wide", "sit"]);
+    let (walk, sit) = (0, 5);
     assert!(g.is_allowed(None, walk) && !g.is_allowed(None, sit), "episodes do not start seated");
-    assert!(g.is_allowed(Some(walk), left) && g.is_allowed(Some(walk), right));
     assert!(!g.is_allowed(Some(walk), sit), "sit only after a turn");
-    assert!(g.is_allowed(Some(left), sit) && g.is_allowed(Some(right), sit));
+    for turn in 1..=4 {
+        assert!(g.is_allowed(Some(walk), turn) && g.is_allowed(Some(turn), walk), "{}", g.names()[turn]);
+        assert!(g.is_allowed(Some(turn), sit), "sit after {}", g.names()[turn]);
+        assert!(!g.is_allowed(Some(sit), turn), "sitting is final");
+    }
     assert!(g.is_allowed(Some(sit), sit) && !g.is_allowed(Some(sit), walk), "sitting is final");
 }
 

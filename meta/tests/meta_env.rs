@@ -15,14 +15,14 @@ use repertoire_scenes::{ScenarioFile, WorldModel};
 use repertoire_skill::train::TrainOptions;
 use repertoire_skill::{SkillSetup, SpecFile};
 
-/// A library with walk, both turns and sit, each trained for one tiny iteration.
+/// A library with walk_to, the four turns and sit, each trained for one tiny iteration.
 fn library() -> &'static Path {
     static LIB: OnceLock<PathBuf> = OnceLock::new();
     LIB.get_or_init(|| {
         let lib = std::env::temp_dir().join(format!("repertoire-meta-lib-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&lib);
         let specs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../skills/skill/specs");
-        for name in ["walk_to", "turn_left", "turn_right", "sit"] {
+        for name in ["walk_to", "turn_left", "turn_right", "turn_left_wide", "turn_right_wide", "sit"] {
             let spec = SpecFile::load(&specs.join(format!("{name}.ron"))).expect("spec");
             let setup = SkillSetup::new(spec, &lib).expect("skill setup (needs the clip pack)");
             let opts = TrainOptions::quick(&lib, &lib.join(format!("run-{name}")), 1, 2, 1);
@@ -46,9 +46,9 @@ fn a_decision_runs_the_chosen_skill_and_respects_the_graph() {
     let mut rng = EnvRng::seed_from_u64(1);
     let mut obs = vec![0.0; env.obs_dim()];
     env.reset(&mut rng, &mut obs);
-    let mut mask = vec![false; 4];
+    let mut mask = vec![false; 6];
     env.option_mask(&mut mask);
-    assert_eq!(mask, [true, true, true, false], "an episode cannot start by sitting");
+    assert_eq!(mask, [true, true, true, true, true, false], "an episode cannot start by sitting");
     let t0 = env.world().time();
     let out = env.step(&[0.0, 1.0, 0.0], &mut obs); // walk
     let dt = env.world().time() - t0;
@@ -57,9 +57,9 @@ fn a_decision_runs_the_chosen_skill_and_respects_the_graph() {
     }
     assert!(obs.iter().all(|v| v.is_finite()));
     env.option_mask(&mut mask);
-    assert_eq!(mask, [true, true, true, false], "after walk: walk or a turn");
+    assert_eq!(mask, [true, true, true, true, true, false], "after walk: walk or a turn");
     // Asking for sit straight after walk is refused: the current skill continues.
-    env.step(&[3.0, 0.0, 0.0], &mut obs);
+    env.step(&[5.0, 0.0, 0.0], &mut obs);
     assert_eq!(env.chosen, [0], "sit is not reachable from walk");
 }
 
@@ -100,7 +100,8 @@ fn a_turn_is_never_run_past_its_clip() {
 #[test]
 fn a_sit_chosen_again_holds_its_seated_frame_while_a_turn_replays() {
     let s = setup(None);
-    let (turn, sit) = (&s.skills[1], &s.skills[3]);
+    let sit_index = s.skills.iter().position(|k| k.name == "sit").expect("sit.ron has a sit");
+    let (turn, sit) = (&s.skills[1], &s.skills[sit_index]);
     assert_eq!((turn.name.as_str(), sit.name.as_str()), ("turn_left", "sit"));
     assert!(sit.holds && !turn.holds, "sit.ron holds its last frame, turn_left.ron does not");
     let (last_turn, last_sit) = (turn.frames - 1, sit.frames - 1);
@@ -127,7 +128,7 @@ fn a_sit_chosen_again_holds_its_seated_frame_while_a_turn_replays() {
     let decisions = (last_sit as f64 / 30.0).ceil() as usize + 2;
     for d in 0..decisions {
         let t0 = env.world().time();
-        let out = env.step(&[3.0, 0.0, 0.0], &mut obs);
+        let out = env.step(&[sit_index as f32, 0.0, 0.0], &mut obs);
         if out.terminated || out.truncated {
             return;
         }
