@@ -6,11 +6,7 @@
 # Usage: bash scripts/train-latent.sh [OUT] — env: STEPS (25000 per skill), MINUTES (20),
 # EPISODES (100), GOTO_ITERS (1500), WEIGHTING (bc | clip | rwr).
 set -euo pipefail
-root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-cd "$root"
-bash scripts/setup.sh
-cargo build --release --quiet
-bin="$root/target/release/repertoire"
+source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 out="${1:-skills/library/latent}"
 data="runs/latent-data-$(date +%s)"
 "$bin" latent collect --steps "${STEPS:-25000}" --out "$data"

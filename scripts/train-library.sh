@@ -36,11 +36,7 @@
 # WALK_TO_FINETUNE_ITERS (800),
 # EXTRA (more arguments for every train/finetune, e.g. "--envs 8").
 set -euo pipefail
-root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-cd "$root"
-bash scripts/setup.sh
-cargo build --release --quiet
-bin="$root/target/release/repertoire"
+source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 lib="${1:-skills/library}"
 trials="${TRIALS:-1000}"
 extra=(${EXTRA:-})
@@ -48,14 +44,6 @@ specs=skills/skill/specs
 mkdir -p "$lib"
 evals="$lib/evals.md.partial"
 printf '# Skill library evaluations\n\nWritten by `scripts/train-library.sh` (%s trials per row).\n' "$trials" > "$evals"
-
-# `skill eval` with its table appended to evals.md under the command that made it.
-eval_skill() {
-  local out
-  out="$("$bin" skill eval "$@" --library "$lib" --trials "$trials")"
-  printf '%s\n' "$out"
-  printf '\n## `repertoire skill eval %s`\n\n%s\n' "$*" "$out" >> "$evals"
-}
 finetune() {
   "$bin" skill finetune "$@" --library "$lib" "${extra[@]}"
 }

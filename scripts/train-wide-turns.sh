@@ -12,27 +12,16 @@
 #      end poses 10.6 → 13.3 %, from the 56° turns' 55.0 → 38.7 %, so the shipped library
 #      keeps its sit.
 # Usage: bash scripts/train-wide-turns.sh [LIBRARY] — env: TRIALS (1000), EXTRA (more arguments
-# for every train/finetune, e.g. "--envs 8"). The library's meta-controller pins the sit's
+# for every train/finetune, e.g. "--envs 8"). The library's meta-controller pins every skill's
 # weights, so retrain it afterwards (`repertoire meta train --library LIBRARY --iterations 600`).
 set -euo pipefail
-root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-cd "$root"
-bash scripts/setup.sh
-cargo build --release --quiet
-bin="$root/target/release/repertoire"
+source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 lib="${1:-skills/library}"
 trials="${TRIALS:-1000}"
 extra=(${EXTRA:-})
 specs=skills/skill/specs
 evals="$lib/evals.md"
 turns=turn_left,turn_right,turn_left_wide,turn_right_wide
-
-eval_skill() {
-  local out
-  out="$("$bin" skill eval "$@" --library "$lib" --trials "$trials")"
-  printf '%s\n' "$out"
-  printf '\n## `repertoire skill eval %s`\n\n%s\n' "$*" "$out" >> "$evals"
-}
 
 for s in turn_left_wide turn_right_wide; do
   iters=()
