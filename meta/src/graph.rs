@@ -89,7 +89,16 @@ impl SkillGraph {
 
     /// Writes which options may be chosen next into `mask`: after `current` (None at an
     /// episode's start), the start skills, else `current` itself and its successors.
+    ///
+    /// Panics when `mask` does not have one entry per skill of the graph.
     pub fn allowed(&self, current: Option<usize>, mask: &mut [bool]) {
+        assert_eq!(
+            mask.len(),
+            self.len(),
+            "an option mask for a graph of {} skills has {} entries",
+            self.len(),
+            mask.len()
+        );
         match current {
             None => mask.copy_from_slice(&self.start),
             Some(c) => {
