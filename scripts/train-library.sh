@@ -38,9 +38,6 @@
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 lib="${1:-skills/library}"
-trials="${TRIALS:-1000}"
-extra=(${EXTRA:-})
-specs=skills/skill/specs
 mkdir -p "$lib"
 evals="$lib/evals.md.partial"
 printf '# Skill library evaluations\n\nWritten by `scripts/train-library.sh` (%s trials per row).\n' "$trials" > "$evals"

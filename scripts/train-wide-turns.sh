@@ -17,9 +17,6 @@
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 lib="${1:-skills/library}"
-trials="${TRIALS:-1000}"
-extra=(${EXTRA:-})
-specs=skills/skill/specs
 evals="$lib/evals.md"
 turns=turn_left,turn_right,turn_left_wide,turn_right_wide
 
