@@ -61,6 +61,22 @@ fn inconsistent_values_are_explained() {
             "Scenario(name: \"x\", props: [Chair(name: \"c\")], spawn: [Zone(name: \"z\", around: \"c\", radius: 1.0, angle_deg: 0.0)], curriculum: (zones: [\"z\"], max_episodes: Some(0)))",
             "`max_episodes` must be at least 1",
         ),
+        (
+            "Scenario(name: \"x\", props: [Chair(name: \"c\")], skills: [\"walk\", \"sit\"], skill_graph: (start: [\"walk\"], edges: [(\"walk\", \"sit\")], guards: [(skill: \"sit\", near: \"d\", within_m: 0.8)]))",
+            "the guard on `sit` names prop `d`",
+        ),
+        (
+            "Scenario(name: \"x\", props: [Chair(name: \"c\")], skills: [\"walk\", \"sit\"], skill_graph: (start: [\"walk\"], edges: [(\"walk\", \"sit\")], guards: [(skill: \"sit\", near: \"c\", within_m: 0.0)]))",
+            "needs `within_m` > 0",
+        ),
+        (
+            "Scenario(name: \"x\", props: [Chair(name: \"c\")], skills: [\"walk\", \"sit\"], skill_graph: (start: [\"walk\"], edges: [(\"walk\", \"sit\")], guards: [(skill: \"turn_left\", near: \"c\", within_m: 0.8)]))",
+            "names `turn_left`, which `skills` does not list",
+        ),
+        (
+            "Scenario(name: \"x\", props: [Chair(name: \"c\")], skills: [\"walk\", \"sit\"], skill_graph: (start: [\"walk\"], edges: [(\"walk\", \"sit\")], guards: [(skill: \"sit\", near: \"c\", within_m: 0.8), (skill: \"sit\", near: \"c\", within_m: 0.5)]))",
+            "has two guards",
+        ),
     ] {
         let err = load(&dir, text).err().unwrap_or_else(|| panic!("accepted: {text}"));
         assert!(err.to_string().contains(expect), "{text}\n→ {err}");

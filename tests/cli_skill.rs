@@ -201,3 +201,17 @@ fn zero_iterations_are_refused_rather_than_run_as_one() {
     }
     assert!(!lib.exists(), "nothing was written");
 }
+
+#[test]
+fn a_negative_or_non_finite_entropy_bonus_is_refused() {
+    let dir = common::temp_dir("cli-ent-coef");
+    let lib = dir.join("library");
+    for bad in ["-0.01", "NaN", "inf"] {
+        let flag = format!("--ent-coef={bad}");
+        let out = repertoire(&["meta", "train", &flag, "--iterations", "1", "--library", lib.to_str().unwrap()]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "--ent-coef {bad} succeeded");
+        assert!(err.contains("--ent-coef") && err.contains("0 or more"), "--ent-coef {bad}: {err}");
+    }
+    assert!(!lib.exists(), "nothing was written");
+}

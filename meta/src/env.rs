@@ -73,6 +73,9 @@ pub struct MetaSkill {
     /// clip record, empty when it has none): choosing the skill picks the cycle up at the frame
     /// nearest the character's pose instead of its first frame.
     pub cycle: (Vec<f32>, Vec<f32>),
+    /// The scenario's precondition on switching to it (`skill_graph.guards`): the prop index
+    /// and the largest pelvis–prop distance (m) at which it may be chosen.
+    pub guard: Option<(usize, f64)>,
 }
 
 /// Where a target-taking skill's training targets lay, in its heading frame: `distance_m` away,
@@ -239,6 +242,12 @@ impl MetaSetup {
             observed.extend(crate::bind::observed_props(&s.manifest.observation.features).map(String::from));
             s.check_fits_layout(&model, &layout)?;
             let uses_target = matches!(s.manifest.spec.goal, Goal::Target { .. });
+            let guard = sc
+                .skill_graph
+                .iter()
+                .flat_map(|g| &g.guards)
+                .find(|g| g.skill == name)
+                .map(|g| (model.prop_id(&g.near).expect("guards are validated with the scenario"), g.within_m));
             skills.push(MetaSkill {
                 name: name.to_string(),
                 frames: s.manifest.clip.frames,
@@ -251,6 +260,7 @@ impl MetaSetup {
                 layout,
                 props,
                 policy: s.policy,
+                guard,
             });
         }
         let observed: Vec<&str> = observed.iter().map(String::as_str).collect();
@@ -420,6 +430,28 @@ impl MetaEnv {
         self.current
     }
 
+    /// Which options the next decision may choose: the graph's successors of the current skill
+    /// (or its start skills), less guarded skills whose guard fails now (the pelvis farther
+    /// from the guard's prop than allowed). The current skill may always continue; were every
+    /// option guarded off at an episode's start, the graph's own mask stands.
+    pub fn allowed_now(&self, mask: &mut [bool]) {
+        self.setup.graph.allowed(self.current, mask);
+        let before = mask.iter().any(|&m| m);
+        for (k, skill) in self.setup.skills.iter().enumerate() {
+            let Some((prop, within)) = skill.guard else { continue };
+            if !mask[k] || self.current == Some(k) {
+                continue;
+            }
+            let d = self.world.prop_relative(prop);
+            if d[0].hypot(d[1]) > within {
+                mask[k] = false;
+            }
+        }
+        if before && !mask.iter().any(|&m| m) {
+            self.setup.graph.allowed(self.current, mask);
+        }
+    }
+
     /// The task state of the current episode (the judges).
     pub fn task(&self) -> &TaskState {
         &self.task
@@ -521,7 +553,7 @@ impl Env for MetaEnv {
     }
 
     fn option_mask(&self, mask: &mut [bool]) {
-        self.setup.graph.allowed(self.current, mask);
+        self.allowed_now(mask);
     }
 
     fn reset(&mut self, rng: &mut EnvRng, obs: &mut [f32]) {
@@ -573,7 +605,7 @@ impl Env for MetaEnv {
         let k = self.setup.skills.len();
         let option = (action[0].round().max(0.0) as usize).min(k - 1);
         let mut mask = vec![false; k];
-        self.setup.graph.allowed(self.current, &mut mask);
+        self.allowed_now(&mut mask);
         // The policy masks forbidden options; a forbidden choice from elsewhere keeps the
         // current skill (or takes the first allowed one at the start).
         let option = if mask[option] {

@@ -584,3 +584,53 @@ fn a_fall_forfeits_the_approach_reward_only_when_the_scenario_says_so() {
     assert!(kept > 1.0 && keep_fall == 0.0, "Keep: the walk's {kept} stays, the fall pays {keep_fall}");
     assert!((forfeit_fall + kept).abs() < 1e-4, "Forfeit: the fall pays back {forfeit_fall} of {kept}");
 }
+
+#[test]
+fn a_guarded_sit_is_offered_only_near_the_chair_and_may_always_continue() {
+    // `skill_graph.guards`: sit may follow a turn only while the pelvis is within 0.8 m of the
+    // chair; once chosen it continues wherever the character is.
+    let builtin = ScenarioFile::builtin_default();
+    let edges_end = "(\"turn_left_wide\", \"sit\"), (\"turn_right_wide\", \"sit\"),\n        ],";
+    assert!(builtin.text.contains(edges_end), "the default graph's last edges moved");
+    let text = builtin.text.replace(
+        edges_end,
+        &format!("{edges_end}\n        guards: [(skill: \"sit\", near: \"chair\", within_m: 0.8)],"),
+    );
+    let file = ScenarioFile::parse(&builtin.path, text).expect("the guarded scenario parses");
+    let model = Arc::new(WorldModel::build(file).expect("scene"));
+    let graph = SkillGraph::of(&model.scenario.scenario);
+    let s = Arc::new(MetaSetup::new(Arc::clone(&model), library(), graph).expect("meta setup"));
+    let (sit, turn) = (s.graph.index("sit").expect("sit"), s.graph.index("turn_left").expect("turn_left"));
+    let chair = model.prop_id("chair").expect("chair");
+    let mut env = MetaEnv::new(Arc::clone(&s));
+    let mut rng = EnvRng::seed_from_u64(3);
+    let mut obs = vec![0.0; env.obs_dim()];
+    env.reset(&mut rng, &mut obs);
+    let mut action = [0.0; 3];
+    action[0] = turn as f32;
+    env.step(&action, &mut obs);
+    assert_eq!(env.current(), Some(turn));
+    let pl = env.world().placements()[chair];
+    let mut mask = vec![false; s.skills.len()];
+    // In front of the chair (its front is its +x), back to it, 2 m and then 0.5 m away.
+    for (d, allowed) in [(2.0, false), (0.5, true)] {
+        let (c, sn) = (pl.yaw.cos(), pl.yaw.sin());
+        env.world_mut().place_standing(pl.pos[0] + d * c, pl.pos[1] + d * sn, pl.yaw);
+        env.option_mask(&mut mask);
+        assert_eq!(mask[sit], allowed, "sit offered {d} m from the chair: {mask:?}");
+        assert!(mask[turn], "the current skill may always continue");
+    }
+    // Asked for at 2 m, sit is refused (the turn continues); at 0.5 m it is taken, and it
+    // continues once the character is moved away.
+    let (c, sn) = (pl.yaw.cos(), pl.yaw.sin());
+    env.world_mut().place_standing(pl.pos[0] + 2.0 * c, pl.pos[1] + 2.0 * sn, pl.yaw);
+    action[0] = sit as f32;
+    env.step(&action, &mut obs);
+    assert_eq!(env.current(), Some(turn), "sit 2 m from the chair is refused");
+    env.world_mut().place_standing(pl.pos[0] + 0.5 * c, pl.pos[1] + 0.5 * sn, pl.yaw);
+    env.step(&action, &mut obs);
+    assert_eq!(env.current(), Some(sit), "sit 0.5 m from the chair is taken");
+    env.world_mut().place_standing(pl.pos[0] + 2.0 * c, pl.pos[1] + 2.0 * sn, pl.yaw);
+    env.option_mask(&mut mask);
+    assert!(mask[sit], "a chosen sit may continue anywhere");
+}

@@ -106,6 +106,24 @@ pub struct SkillGraphSpec {
     pub start: Vec<String>,
     /// Allowed transitions `(from, to)`.
     pub edges: Vec<(String, String)>,
+    /// Preconditions on switching to a skill (a state machine's transition conditions): a
+    /// guarded skill may be chosen only while its guard holds; once chosen it may continue.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub guards: Vec<SkillGuard>,
+}
+
+/// A precondition on switching to `skill`: the pelvis within `within_m` (horizontally) of the
+/// prop `near`'s centre. `(skill: "sit", near: "chair", within_m: 0.9)` keeps a controller from
+/// starting a sit a metre or more from the chair, which no sit absorbs.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SkillGuard {
+    /// The guarded skill.
+    pub skill: String,
+    /// The prop it must be near.
+    pub near: String,
+    /// Largest horizontal pelvis–prop distance at which the skill may be chosen (m).
+    pub within_m: f64,
 }
 
 /// Where the body comes from.
@@ -981,7 +999,8 @@ impl ScenarioFile {
             if g.start.is_empty() {
                 return Err(self.invalid(Some("skill_graph"), "the skill graph names no start skill"));
             }
-            for name in g.start.iter().chain(g.edges.iter().flat_map(|(a, b)| [a, b])) {
+            let guarded = g.guards.iter().map(|guard| &guard.skill);
+            for name in g.start.iter().chain(g.edges.iter().flat_map(|(a, b)| [a, b])).chain(guarded) {
                 if !skills.contains(name.as_str()) {
                     return Err(self.invalid(
                         Some(name),
@@ -989,6 +1008,28 @@ impl ScenarioFile {
                             "the skill graph names `{name}`, which `skills` does not list ({})",
                             s.skills.join(", ")
                         ),
+                    ));
+                }
+            }
+            let mut seen = HashSet::new();
+            for guard in &g.guards {
+                if !seen.insert(guard.skill.as_str()) {
+                    return Err(self
+                        .invalid(Some(&guard.skill), format!("skill `{}` has two guards; give it one", guard.skill)));
+                }
+                if !s.props.iter().any(|p| p.name() == guard.near) {
+                    return Err(self.invalid(
+                        Some(&guard.near),
+                        format!(
+                            "the guard on `{}` names prop `{}`, which the scenario does not have",
+                            guard.skill, guard.near
+                        ),
+                    ));
+                }
+                if !(guard.within_m.is_finite() && guard.within_m > 0.0) {
+                    return Err(self.invalid(
+                        Some(&guard.near),
+                        format!("the guard on `{}` needs `within_m` > 0 (it is {})", guard.skill, guard.within_m),
                     ));
                 }
             }

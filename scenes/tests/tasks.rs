@@ -273,3 +273,14 @@ fn every_shipped_scenario_builds_and_the_paper_reward_variant_differs_from_sit_o
     paper.name = sit.name.clone();
     assert_eq!(paper, sit, "the same scene, skills, zones and success test");
 }
+
+#[test]
+fn the_guarded_sit_variant_differs_from_sit_only_in_its_guard() {
+    let sit = ScenarioFile::load(shipped("sit.ron")).unwrap().scenario;
+    let mut guarded = ScenarioFile::load(shipped("sit_guard.ron")).unwrap().scenario;
+    let graph = guarded.skill_graph.as_mut().expect("a graph");
+    assert_eq!(graph.guards.len(), 1);
+    let guard = graph.guards.pop().unwrap();
+    assert_eq!((guard.skill.as_str(), guard.near.as_str(), guard.within_m), ("sit", "chair", 0.8));
+    assert_eq!(guarded, sit, "the same scene, skills, graph and task");
+}

@@ -85,6 +85,11 @@ pub enum MetaCommand {
         /// Seed.
         #[arg(long, default_value_t = 1)]
         seed: u64,
+        /// Entropy bonus of the PPO loss (skill choice and targets together; default 0 over the
+        /// skills, the latent low level's own otherwise). Without one the controller settles on
+        /// one sequence as soon as it finds one that pays.
+        #[arg(long, value_parser = crate::cli::non_negative)]
+        ent_coef: Option<f32>,
         /// Open every zone from the start (the "no curriculum" ablation).
         #[arg(long)]
         no_curriculum: bool,
@@ -280,6 +285,7 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
             iterations,
             envs,
             seed,
+            ent_coef,
             no_curriculum,
             chain,
             skills,
@@ -288,7 +294,18 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
         } => {
             if let Some((model, dir)) = latent_low_level(file.as_ref(), latent)? {
                 no_skill_options(&chain, &skills)?;
-                let args = LatentTrain { library, out, run_dir, iterations, envs, seed, no_curriculum, hold, command };
+                let args = LatentTrain {
+                    library,
+                    out,
+                    run_dir,
+                    iterations,
+                    envs,
+                    seed,
+                    ent_coef,
+                    no_curriculum,
+                    hold,
+                    command,
+                };
                 return train_latent(model, &dir, args);
             }
             let setup = setup(file.as_ref(), &library, &chain, &skills)?;
@@ -297,6 +314,7 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
             let run_dir = run_dir.unwrap_or_else(|| PathBuf::from(format!("runs/meta-{secs}-s{seed}")));
             let ppo =
                 repertoire_learn::ppo::PpoConfig { num_envs: envs, num_iterations: iterations, seed, ..default_ppo() };
+            let ppo = repertoire_learn::ppo::PpoConfig { ent_coef: ent_coef.unwrap_or(ppo.ent_coef), ..ppo };
             let opts = MetaTrainOptions {
                 out: out.clone(),
                 run_dir: run_dir.clone(),
@@ -638,6 +656,7 @@ struct LatentTrain {
     iterations: usize,
     envs: usize,
     seed: u64,
+    ent_coef: Option<f32>,
     no_curriculum: bool,
     hold: usize,
     command: String,
@@ -657,6 +676,7 @@ fn train_latent(model: Arc<WorldModel>, dir: &Path, a: LatentTrain) -> Result<()
         seed: a.seed,
         ..latent::default_ppo(&setup)
     };
+    let ppo = repertoire_learn::ppo::PpoConfig { ent_coef: a.ent_coef.unwrap_or(ppo.ent_coef), ..ppo };
     let opts = MetaTrainOptions {
         out: out.clone(),
         run_dir: run_dir.clone(),

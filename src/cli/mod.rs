@@ -82,7 +82,6 @@ pub enum Command {
     },
 }
 
-/// Dispatches one parsed command line.
 /// A count that must be at least 1 (`--iterations`): 0 would silently run one iteration.
 pub fn at_least_one(s: &str) -> std::result::Result<usize, String> {
     match s.parse::<usize>() {
@@ -92,6 +91,16 @@ pub fn at_least_one(s: &str) -> std::result::Result<usize, String> {
     }
 }
 
+/// A finite number that must not be negative (`--ent-coef`).
+pub fn non_negative(s: &str) -> std::result::Result<f32, String> {
+    match s.parse::<f32>() {
+        Ok(x) if x.is_finite() && x >= 0.0 => Ok(x),
+        Ok(_) => Err("must be a finite number, 0 or more".to_string()),
+        Err(e) => Err(e.to_string()),
+    }
+}
+
+/// Dispatches one parsed command line.
 pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Run(args) => run::run(args),

@@ -111,6 +111,12 @@ fn check(file: Option<PathBuf>) -> Result<()> {
     }
     println!("task      {}", describe_task(&s.task));
     println!("skills    {}", if s.skills.is_empty() { "none".into() } else { s.skills.join(", ") });
+    if let Some(g) = &s.skill_graph {
+        println!("graph     start {}; {} transitions", g.start.join(", "), g.edges.len());
+        for guard in &g.guards {
+            println!("  guard   {} only within {} m of {}", guard.skill, guard.within_m, guard.near);
+        }
+    }
     if !s.bind.is_empty() {
         let bound: Vec<String> = s
             .bind

@@ -1,0 +1,81 @@
+//! Probe of an object skill's reference-state starts: the clip's joint angles go straight to the
+//! PD actuators (no policy; or, with `--policy=LIBRARY`, the library skill acts) and, every few
+//! ticks, it prints the object's pose relative to the pelvis and which hands touch it, until the
+//! object touches the floor or the body falls, and then which of the two ended the episode:
+//! whether the clip's grip holds the object at all, and how a trained policy loses it.
+//!
+//! `cargo run --release --example object_probe -- skills/skill/specs/carry.ron [--starts=5] [--policy=skills/library]`
+
+use rand::SeedableRng;
+use repertoire_learn::env::{Env, EnvRng};
+use repertoire_skill::{SkillSetup, SpecFile};
+use std::path::Path;
+
+fn main() -> anyhow::Result<()> {
+    let args: Vec<String> = std::env::args().collect();
+    let spec_path = args.get(1).map_or("skills/skill/specs/carry.ron", String::as_str);
+    let option = |name: &str, default: usize| -> anyhow::Result<usize> {
+        args.iter().find_map(|a| a.strip_prefix(name)).map_or(Ok(default), |v| Ok(v.parse()?))
+    };
+    let starts = option("--starts=", 5)?;
+    let policy_lib = args.iter().find_map(|a| a.strip_prefix("--policy="));
+    let spec = SpecFile::load(Path::new(spec_path))?;
+    let Some((_, prop)) = spec.spec.goal.object() else { anyhow::bail!("{spec_path}: the goal has no object") };
+    let prop = prop.to_string();
+    let mut policy = match policy_lib {
+        Some(lib) => Some(repertoire_skill::library::load(Path::new(lib), &spec.spec.name)?),
+        None => None,
+    };
+    let setup = SkillSetup::new(spec, Path::new(policy_lib.unwrap_or("skills/library")))?;
+    let r = &setup.settings.reference;
+    let frames = r.frames();
+    let mut env = setup.env();
+    let p = env.world().model().prop_id(&prop).ok_or_else(|| anyhow::anyhow!("no prop `{prop}`"))?;
+    let mut obs = vec![0.0; env.obs_dim()];
+    let mut rng = EnvRng::seed_from_u64(1);
+    let mut action = vec![0.0f32; r.dof];
+    for t in 0..starts {
+        env.reset(&mut rng, &mut obs);
+        println!("start {t}: frame {}", env.task().phase());
+        for step in 0..setup.max_steps as usize {
+            if let Some(skill) = policy.as_mut() {
+                skill.policy.act(&obs, &mut action);
+                action.iter_mut().for_each(|a| *a = a.clamp(-1.0, 1.0));
+            } else {
+                let f = (env.task().phase() + 1) % frames;
+                for (k, a) in action.iter_mut().enumerate() {
+                    *a = env.action_for(k, r.joints_at(f)[k]);
+                }
+            }
+            let out = env.step(&action, &mut obs);
+            let w = env.world();
+            let rel = w.prop_relative(p);
+            let c = w.contacts();
+            let hands = c.hands_on_prop(p);
+            if step % 6 == 0 || out.terminated {
+                println!(
+                    "  {:.2} s: object ahead {:+.3} left {:+.3} up {:+.3} m, hands {:?}, on floor {}",
+                    (step + 1) as f64 / 60.0,
+                    rel[0],
+                    rel[1],
+                    rel[2],
+                    hands,
+                    c.prop_on_floor(p)
+                );
+            }
+            if out.terminated || out.truncated {
+                let w = env.world();
+                let why = match (out.terminated, w.has_fallen(), w.contacts().prop_on_floor(p)) {
+                    (false, ..) => "time limit",
+                    (true, true, true) => "fell and dropped the object",
+                    (true, true, false) => "fell",
+                    (true, false, true) => "dropped the object",
+                    (true, false, false) => "terminated",
+                };
+                println!("  ended after {:.2} s: {why}", (step + 1) as f64 / 60.0);
+                break;
+            }
+        }
+    }
+    Ok(())
+}
