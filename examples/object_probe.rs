@@ -48,24 +48,23 @@ fn main() -> anyhow::Result<()> {
                 }
             }
             let out = env.step(&action, &mut obs);
-            let w = env.world();
-            let rel = w.prop_relative(p);
-            let c = w.contacts();
-            let hands = c.hands_on_prop(p);
-            if step % 6 == 0 || out.terminated {
-                println!(
-                    "  {:.2} s: object ahead {:+.3} left {:+.3} up {:+.3} m, hands {:?}, on floor {}",
-                    (step + 1) as f64 / 60.0,
-                    rel[0],
-                    rel[1],
-                    rel[2],
-                    hands,
-                    c.prop_on_floor(p)
-                );
+            let ended = out.terminated || out.truncated;
+            if step % 6 != 0 && !ended {
+                continue;
             }
-            if out.terminated || out.truncated {
-                let w = env.world();
-                let why = match (out.terminated, w.has_fallen(), w.contacts().prop_on_floor(p)) {
+            let w = env.world();
+            let (rel, c) = (w.prop_relative(p), w.contacts());
+            println!(
+                "  {:.2} s: object ahead {:+.3} left {:+.3} up {:+.3} m, hands {:?}, on floor {}",
+                (step + 1) as f64 / 60.0,
+                rel[0],
+                rel[1],
+                rel[2],
+                c.hands_on_prop(p),
+                c.prop_on_floor(p)
+            );
+            if ended {
+                let why = match (out.terminated, w.has_fallen(), c.prop_on_floor(p)) {
                     (false, ..) => "time limit",
                     (true, true, true) => "fell and dropped the object",
                     (true, true, false) => "fell",

@@ -433,10 +433,9 @@ impl MetaEnv {
     /// Which options the next decision may choose: the graph's successors of the current skill
     /// (or its start skills), less guarded skills whose guard fails now (the pelvis farther
     /// from the guard's prop than allowed). The current skill may always continue; were every
-    /// option guarded off at an episode's start, the graph's own mask stands.
+    /// start skill guarded off at an episode's start, the graph's own mask stands.
     pub fn allowed_now(&self, mask: &mut [bool]) {
         self.setup.graph.allowed(self.current, mask);
-        let before = mask.iter().any(|&m| m);
         for (k, skill) in self.setup.skills.iter().enumerate() {
             let Some((prop, within)) = skill.guard else { continue };
             if !mask[k] || self.current == Some(k) {
@@ -447,7 +446,7 @@ impl MetaEnv {
                 mask[k] = false;
             }
         }
-        if before && !mask.iter().any(|&m| m) {
+        if !mask.iter().any(|&m| m) {
             self.setup.graph.allowed(self.current, mask);
         }
     }

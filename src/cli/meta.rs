@@ -312,9 +312,14 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
             let out = out.unwrap_or_else(|| setup_meta(&library, &setup));
             let secs = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
             let run_dir = run_dir.unwrap_or_else(|| PathBuf::from(format!("runs/meta-{secs}-s{seed}")));
-            let ppo =
-                repertoire_learn::ppo::PpoConfig { num_envs: envs, num_iterations: iterations, seed, ..default_ppo() };
-            let ppo = repertoire_learn::ppo::PpoConfig { ent_coef: ent_coef.unwrap_or(ppo.ent_coef), ..ppo };
+            let base = default_ppo();
+            let ppo = repertoire_learn::ppo::PpoConfig {
+                num_envs: envs,
+                num_iterations: iterations,
+                seed,
+                ent_coef: ent_coef.unwrap_or(base.ent_coef),
+                ..base
+            };
             let opts = MetaTrainOptions {
                 out: out.clone(),
                 run_dir: run_dir.clone(),
@@ -670,13 +675,14 @@ fn train_latent(model: Arc<WorldModel>, dir: &Path, a: LatentTrain) -> Result<()
     let out = a.out.unwrap_or_else(|| default_latent_meta(&a.library, &setup.model));
     let secs = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
     let run_dir = a.run_dir.unwrap_or_else(|| PathBuf::from(format!("runs/latent-meta-{secs}-s{}", a.seed)));
+    let base = latent::default_ppo(&setup);
     let ppo = repertoire_learn::ppo::PpoConfig {
         num_envs: a.envs,
         num_iterations: a.iterations,
         seed: a.seed,
-        ..latent::default_ppo(&setup)
+        ent_coef: a.ent_coef.unwrap_or(base.ent_coef),
+        ..base
     };
-    let ppo = repertoire_learn::ppo::PpoConfig { ent_coef: a.ent_coef.unwrap_or(ppo.ent_coef), ..ppo };
     let opts = MetaTrainOptions {
         out: out.clone(),
         run_dir: run_dir.clone(),
