@@ -84,6 +84,11 @@ fn train_eval_and_finetune_a_chain() {
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("--explore-log-std") && err.contains("--warm-start"), "{err}");
+    // So is a fresh critic for a policy that starts fresh anyway.
+    let out = repertoire(&["skill", "train", walk.to_str().unwrap(), "--fresh-critic", "--library", lib]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--fresh-critic") && err.contains("--warm-start"), "{err}");
 }
 
 #[test]

@@ -3,8 +3,9 @@
 //!
 //! At a decision the planner copies the episode into a private environment
 //! ([`MetaEnv::snapshot`] / [`MetaEnv::restore`]) and simulates skill plans from there: each
-//! allowed option held for 1 to `repeats + 1` decisions, each such prefix also followed by every
-//! *terminal* skill the graph allows after it (one with no way out but itself: sit), run until
+//! option the episode allows there (the graph's, less skills whose guards fail) held for 1 to
+//! `repeats + 1` decisions, each such prefix also followed by every *terminal* skill allowed after
+//! it (one with no way out but itself: sit), run until
 //! the episode ends or `horizon` decisions pass. A skill that takes a target (walk, stage 2) is
 //! tried with each of [`TARGETS`] (2 m ahead, and 30° and 60° to either side, held in the
 //! pelvis' frame, so a held walk curves along an arc). The physics is deterministic, so a plan that
@@ -150,7 +151,7 @@ impl Planner {
             self.plan.clear();
         }
         if self.plan.is_empty() {
-            let best = self.search(&now, env.current());
+            let best = self.search(&now);
             if best.success {
                 self.committed = true;
                 self.plan = best.options.iter().rev().copied().collect();
@@ -217,10 +218,13 @@ impl Planner {
         Outcome { options: plan.clone(), success: false, score }
     }
 
-    /// The best plan from `state` (the episode's snapshot, `current` its skill).
-    fn search(&mut self, state: &[f64], current: Option<usize>) -> Outcome {
+    /// The best plan from `state` (the episode's snapshot). Options are what the episode would
+    /// allow where each is tried: the graph's successors less the skills whose guards fail
+    /// there ([`MetaEnv::allowed_now`]).
+    fn search(&mut self, state: &[f64]) -> Outcome {
         let k = self.setup.skills.len();
-        self.setup.graph.allowed(current, &mut self.mask);
+        self.restore(state);
+        self.scratch.allowed_now(&mut self.mask);
         // Terminal skills right away first: the shortest plans.
         let mut order: Vec<usize> = (0..k).filter(|&c| self.mask[c]).collect();
         order.sort_by_key(|&c| !self.terminal[c]);
@@ -258,7 +262,7 @@ impl Planner {
                         break;
                     }
                     let mid = self.scratch.snapshot();
-                    self.setup.graph.allowed(Some(o), &mut self.mask);
+                    self.scratch.allowed_now(&mut self.mask);
                     let after: Vec<usize> = (0..k).filter(|&c| c != o && self.mask[c] && self.terminal[c]).collect();
                     for c in after {
                         self.restore(&mid);

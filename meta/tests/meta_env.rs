@@ -585,21 +585,54 @@ fn a_fall_forfeits_the_approach_reward_only_when_the_scenario_says_so() {
     assert!((forfeit_fall + kept).abs() < 1e-4, "Forfeit: the fall pays back {forfeit_fall} of {kept}");
 }
 
-#[test]
-fn a_guarded_sit_is_offered_only_near_the_chair_and_may_always_continue() {
-    // `skill_graph.guards`: sit may follow a turn only while the pelvis is within 0.8 m of the
-    // chair; once chosen it continues wherever the character is.
+/// The default scenario with sit guarded to within `within_m` of the chair.
+fn guarded_setup(within_m: f64) -> Arc<MetaSetup> {
     let builtin = ScenarioFile::builtin_default();
     let edges_end = "(\"turn_left_wide\", \"sit\"), (\"turn_right_wide\", \"sit\"),\n        ],";
     assert!(builtin.text.contains(edges_end), "the default graph's last edges moved");
     let text = builtin.text.replace(
         edges_end,
-        &format!("{edges_end}\n        guards: [(skill: \"sit\", near: \"chair\", within_m: 0.8)],"),
+        &format!("{edges_end}\n        guards: [(skill: \"sit\", near: \"chair\", within_m: {within_m})],"),
     );
     let file = ScenarioFile::parse(&builtin.path, text).expect("the guarded scenario parses");
     let model = Arc::new(WorldModel::build(file).expect("scene"));
     let graph = SkillGraph::of(&model.scenario.scenario);
-    let s = Arc::new(MetaSetup::new(Arc::clone(&model), library(), graph).expect("meta setup"));
+    Arc::new(MetaSetup::new(model, library(), graph).expect("meta setup"))
+}
+
+#[test]
+fn the_planner_searches_only_what_the_guards_allow() {
+    // Far from the chair a guarded sit is no option: the planner neither picks it nor spends
+    // simulations on plans through it, as it does without the guard.
+    use repertoire_meta::planner::{Planner, PlannerConfig};
+    let cfg = PlannerConfig { horizon: 2, repeats: 0 };
+    let mut searched = Vec::new();
+    for s in [setup(None), guarded_setup(0.05)] {
+        let (sit, turn) = (s.graph.index("sit").expect("sit"), s.graph.index("turn_left").expect("turn_left"));
+        let chair = s.model.prop_id("chair").expect("chair");
+        let mut env = MetaEnv::new(Arc::clone(&s));
+        let mut obs = vec![0.0; env.obs_dim()];
+        env.reset(&mut EnvRng::seed_from_u64(3), &mut obs);
+        let mut act = [0.0; 3];
+        act[0] = turn as f32;
+        env.step(&act, &mut obs);
+        let pl = env.world().placements()[chair];
+        env.world_mut().place_standing(pl.pos[0] + 2.0 * pl.yaw.cos(), pl.pos[1] + 2.0 * pl.yaw.sin(), pl.yaw);
+        let mut planner = Planner::new(Arc::clone(&s), cfg);
+        planner.act(&env, &mut act);
+        let guarded = s.skills[sit].guard.is_some();
+        assert!(!guarded || act[0] as usize != sit, "the planner picked a guarded-off sit");
+        searched.push(planner.simulated);
+    }
+    assert!(searched[1] < searched[0], "simulated decisions, unguarded and guarded: {searched:?}");
+}
+
+#[test]
+fn a_guarded_sit_is_offered_only_near_the_chair_and_may_always_continue() {
+    // `skill_graph.guards`: sit may follow a turn only while the pelvis is within 0.8 m of the
+    // chair; once chosen it continues wherever the character is.
+    let s = guarded_setup(0.8);
+    let model = Arc::clone(&s.model);
     let (sit, turn) = (s.graph.index("sit").expect("sit"), s.graph.index("turn_left").expect("turn_left"));
     let chair = model.prop_id("chair").expect("chair");
     let mut env = MetaEnv::new(Arc::clone(&s));

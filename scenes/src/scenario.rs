@@ -25,6 +25,7 @@ pub const KNOWN_SKILLS: &[&str] = &[
     "turn_left_wide",
     "turn_right_wide",
     "sit",
+    "sit_from_wide",
     "lift",
     "carry",
     "put_down",

@@ -125,6 +125,10 @@ pub struct TrainArgs {
     /// steering) explores more than the converged stage before it did.
     #[arg(long, allow_hyphen_values = true)]
     explore_log_std: Option<f32>,
+    /// Starting from the library's skill of the spec's own name (`finetune`, `--warm-start`),
+    /// train a fresh value network instead of continuing the critic saved with its policy.
+    #[arg(long)]
+    fresh_critic: bool,
     /// Seed (default: the spec's).
     #[arg(long)]
     seed: Option<u64>,
@@ -173,6 +177,9 @@ fn train_cmd(
     a: TrainArgs,
     command: String,
 ) -> Result<()> {
+    if a.fresh_critic && prior.is_none() {
+        bail!("--fresh-critic concerns a library skill's critic: use it with --warm-start or finetune");
+    }
     if a.explore_log_std.is_some() && prior.is_none() {
         bail!(
             "--explore-log-std raises a library skill's spread: use it with --warm-start, --warm-start-from or finetune"
@@ -204,6 +211,7 @@ fn train_cmd(
         init_from_library: prior.is_some(),
         prior_skill: prior.flatten(),
         explore_log_std: a.explore_log_std,
+        fresh_critic: a.fresh_critic,
         checkpoint_every: a.checkpoint_every,
         serial: a.serial,
         progress: true,

@@ -10,7 +10,7 @@ use safetensors::{Dtype, SafeTensors, tensor::TensorView};
 
 use crate::checkpoint::CheckpointError;
 use crate::env::Env;
-use crate::nn::MlpInference;
+use crate::nn::{Mlp, MlpInference};
 use crate::normalize::RunningMeanStd;
 use crate::ppo::{OBS_CLIP, Ppo};
 
@@ -67,24 +67,7 @@ impl ActingPolicy {
     /// first shape that differs.
     pub fn load_into<E: Env>(&self, ppo: &mut Ppo<E>) -> Result<(), String> {
         let policy = &mut ppo.agent.policy;
-        if policy.mean.layers.len() != self.mean.layers().len() {
-            return Err(format!(
-                "the policy has {} layers, the configuration {}",
-                self.mean.layers().len(),
-                policy.mean.layers.len()
-            ));
-        }
-        for (i, (layer, (inputs, outputs, w, b))) in policy.mean.layers.iter_mut().zip(self.mean.layers()).enumerate() {
-            if (layer.inputs(), layer.outputs()) != (*inputs, *outputs) {
-                return Err(format!(
-                    "layer {i} is {inputs}×{outputs} in the policy, {}×{} in the configuration",
-                    layer.inputs(),
-                    layer.outputs()
-                ));
-            }
-            layer.weight.copy_from(w);
-            layer.bias.copy_from(b);
-        }
+        copy_mlp(&mut policy.mean, &self.mean, "policy")?;
         if policy.log_std.shape().0 != self.log_std.len() || ppo.obs_rms.dim() != self.obs_rms.dim() {
             return Err("the action or observation width differs".into());
         }
@@ -117,17 +100,11 @@ impl ActingPolicy {
         if at > have {
             return Err(format!("cannot insert inputs at {at}: the policy takes {have}"));
         }
-        let mut layers = self.mean.layers().to_vec();
-        let (_, outputs, w, _) = &mut layers[0];
-        // Row-major [in × out]: the new inputs are `count` zero rows from row `at`.
-        let outputs = *outputs;
-        w.splice(at * outputs..at * outputs, std::iter::repeat_n(0.0, count * outputs));
-        layers[0].0 = have + count;
         let mut obs_rms = self.obs_rms.clone();
         obs_rms.mean.splice(at..at, std::iter::repeat_n(0.0, count));
         obs_rms.var.splice(at..at, std::iter::repeat_n(1.0, count));
         Ok(ActingPolicy {
-            mean: MlpInference::from_layers(layers)?,
+            mean: insert_zero_inputs(&self.mean, at, count)?,
             log_std: self.log_std.clone(),
             obs_rms,
             normalize_obs: self.normalize_obs,
@@ -159,12 +136,7 @@ impl ActingPolicy {
     /// Writes the policy to `path` (safetensors) via a temporary sibling and a rename.
     pub fn save(&self, path: &Path) -> Result<(), CheckpointError> {
         let mut entries: Vec<(String, Dtype, Vec<usize>, Vec<u8>)> = Vec::new();
-        let bytes32 = |v: &[f32]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
-        let bytes64 = |v: &[f64]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
-        for (i, (inputs, outputs, w, b)) in self.mean.layers().iter().enumerate() {
-            entries.push((format!("mean.{i}.weight"), Dtype::F32, vec![*inputs, *outputs], bytes32(w)));
-            entries.push((format!("mean.{i}.bias"), Dtype::F32, vec![*outputs], bytes32(b)));
-        }
+        entries.extend(layer_entries("mean", &self.mean));
         entries.push(("log_std".into(), Dtype::F32, vec![self.log_std.len()], bytes32(&self.log_std)));
         let d = self.obs_rms.dim();
         entries.push(("obs.mean".into(), Dtype::F64, vec![d], bytes64(&self.obs_rms.mean)));
@@ -172,33 +144,14 @@ impl ActingPolicy {
         entries.push(("obs.count".into(), Dtype::F64, vec![1], bytes64(&[self.obs_rms.count])));
         let flag = if self.normalize_obs { 1.0 } else { 0.0 };
         entries.push(("obs.normalize".into(), Dtype::F64, vec![1], bytes64(&[flag])));
-        let views: Vec<(String, TensorView<'_>)> = entries
-            .iter()
-            .map(|(n, dt, shape, data)| (n.clone(), TensorView::new(*dt, shape.clone(), data).expect("sizes match")))
-            .collect();
-        let meta = HashMap::from([("format".to_string(), "repertoire-acting-policy-1".to_string())]);
-        let bytes =
-            safetensors::serialize(views, Some(meta)).map_err(|e| corrupt(path, format!("cannot serialise: {e}")))?;
-        repertoire_files::write_atomic(path, &bytes).map_err(|e| CheckpointError::Io { path: e.path, source: e.source })
+        write_entries(path, &entries, "repertoire-acting-policy-1")
     }
 
     /// Reads a policy written by [`ActingPolicy::save`].
     pub fn load(path: &Path) -> Result<Self, CheckpointError> {
         let bytes = std::fs::read(path).map_err(|source| CheckpointError::Io { path: path.to_path_buf(), source })?;
         let st = SafeTensors::deserialize(&bytes).map_err(|e| corrupt(path, e.to_string()))?;
-        let mut layers = Vec::new();
-        for i in 0.. {
-            if st.tensor(&format!("mean.{i}.weight")).is_err() {
-                break;
-            }
-            let (shape, w) = f32s(path, &st, &format!("mean.{i}.weight"))?;
-            let (_, b) = f32s(path, &st, &format!("mean.{i}.bias"))?;
-            if shape.len() != 2 {
-                return Err(corrupt(path, format!("mean.{i}.weight has shape {shape:?}, expected 2-D")));
-            }
-            layers.push((shape[0], shape[1], w, b));
-        }
-        let mean = MlpInference::from_layers(layers).map_err(|m| corrupt(path, m))?;
+        let mean = read_mlp(path, &st, "mean")?;
         let (_, log_std) = f32s(path, &st, "log_std")?;
         if log_std.len() != mean.outputs() || log_std.iter().any(|v| !v.is_finite()) {
             return Err(corrupt(path, format!("log_std has {} values for {} actions", log_std.len(), mean.outputs())));
@@ -220,6 +173,172 @@ impl ActingPolicy {
             normalize_obs: flag[0] != 0.0,
             scratch: Vec::new(),
         })
+    }
+}
+
+/// One tensor to write: name, type, shape, little-endian bytes.
+type Entry = (String, Dtype, Vec<usize>, Vec<u8>);
+
+fn bytes32(v: &[f32]) -> Vec<u8> {
+    v.iter().flat_map(|x| x.to_le_bytes()).collect()
+}
+
+fn bytes64(v: &[f64]) -> Vec<u8> {
+    v.iter().flat_map(|x| x.to_le_bytes()).collect()
+}
+
+/// The layers of `mlp` as `PREFIX.i.weight` / `PREFIX.i.bias` tensors.
+fn layer_entries(prefix: &str, mlp: &MlpInference) -> Vec<Entry> {
+    let mut entries = Vec::new();
+    for (i, (inputs, outputs, w, b)) in mlp.layers().iter().enumerate() {
+        entries.push((format!("{prefix}.{i}.weight"), Dtype::F32, vec![*inputs, *outputs], bytes32(w)));
+        entries.push((format!("{prefix}.{i}.bias"), Dtype::F32, vec![*outputs], bytes32(b)));
+    }
+    entries
+}
+
+/// Reads the MLP [`layer_entries`] wrote under `prefix`.
+fn read_mlp(path: &Path, st: &SafeTensors<'_>, prefix: &str) -> Result<MlpInference, CheckpointError> {
+    let mut layers = Vec::new();
+    for i in 0.. {
+        if st.tensor(&format!("{prefix}.{i}.weight")).is_err() {
+            break;
+        }
+        let (shape, w) = f32s(path, st, &format!("{prefix}.{i}.weight"))?;
+        let (_, b) = f32s(path, st, &format!("{prefix}.{i}.bias"))?;
+        if shape.len() != 2 {
+            return Err(corrupt(path, format!("{prefix}.{i}.weight has shape {shape:?}, expected 2-D")));
+        }
+        if w.iter().chain(&b).any(|v| !v.is_finite()) {
+            return Err(corrupt(path, format!("layer {prefix}.{i} holds a NaN or infinite weight")));
+        }
+        layers.push((shape[0], shape[1], w, b));
+    }
+    MlpInference::from_layers(layers).map_err(|m| corrupt(path, m))
+}
+
+/// Writes `entries` to `path` as safetensors (format tag `format`), atomically.
+fn write_entries(path: &Path, entries: &[Entry], format: &str) -> Result<(), CheckpointError> {
+    let views: Vec<(String, TensorView<'_>)> = entries
+        .iter()
+        .map(|(n, dt, shape, data)| (n.clone(), TensorView::new(*dt, shape.clone(), data).expect("sizes match")))
+        .collect();
+    let meta = HashMap::from([("format".to_string(), format.to_string())]);
+    let bytes =
+        safetensors::serialize(views, Some(meta)).map_err(|e| corrupt(path, format!("cannot serialise: {e}")))?;
+    repertoire_files::write_atomic(path, &bytes).map_err(|e| CheckpointError::Io { path: e.path, source: e.source })
+}
+
+/// Copies `src`'s weights into the trainable `dst` (`what` names it in the error); `Err` names
+/// the first shape that differs.
+fn copy_mlp(dst: &mut Mlp, src: &MlpInference, what: &str) -> Result<(), String> {
+    if dst.layers.len() != src.layers().len() {
+        return Err(format!(
+            "the {what} network has {} layers, the configuration {}",
+            src.layers().len(),
+            dst.layers.len()
+        ));
+    }
+    for (i, (layer, (inputs, outputs, w, b))) in dst.layers.iter_mut().zip(src.layers()).enumerate() {
+        if (layer.inputs(), layer.outputs()) != (*inputs, *outputs) {
+            return Err(format!(
+                "{what} layer {i} is {inputs}×{outputs} in the file, {}×{} in the configuration",
+                layer.inputs(),
+                layer.outputs()
+            ));
+        }
+        layer.weight.copy_from(w);
+        layer.bias.copy_from(b);
+    }
+    Ok(())
+}
+
+/// `mlp` with `count` inputs inserted before its input `at`, entering with zero weights.
+fn insert_zero_inputs(mlp: &MlpInference, at: usize, count: usize) -> Result<MlpInference, String> {
+    let mut layers = mlp.layers().to_vec();
+    let (inputs, outputs, w, _) = &mut layers[0];
+    if at > *inputs {
+        return Err(format!("cannot insert inputs at {at}: the network takes {inputs}"));
+    }
+    // Row-major [in × out]: the new inputs are `count` zero rows from row `at`.
+    let outputs = *outputs;
+    w.splice(at * outputs..at * outputs, std::iter::repeat_n(0.0, count * outputs));
+    layers[0].0 += count;
+    MlpInference::from_layers(layers)
+}
+
+/// A trained skill's value network with the statistics of the returns its outputs are scaled
+/// by (PPO's reward normaliser), saved beside the acting policy so that the next training stage
+/// of the same skill (a fine-tune, a warm start) starts with a critic that already knows the
+/// task instead of a fresh one whose first updates pull the policy about.
+#[derive(Clone, Debug)]
+pub struct ActingCritic {
+    /// Normalised observation → value.
+    pub value: MlpInference,
+    /// The reward normaliser's statistics of discounted returns.
+    pub returns: RunningMeanStd,
+}
+
+impl ActingCritic {
+    /// The current value network and return statistics of a PPO learner.
+    pub fn from_ppo<E: Env>(ppo: &Ppo<E>) -> Self {
+        ActingCritic { value: ppo.agent.value.net.inference(), returns: ppo.reward_scaler.rms.clone() }
+    }
+
+    /// Starts `ppo`'s value network and reward normaliser from this critic. `Err` names the
+    /// first shape that differs.
+    pub fn load_into<E: Env>(&self, ppo: &mut Ppo<E>) -> Result<(), String> {
+        if self.value.inputs() != ppo.envs.obs_dim() || self.value.outputs() != 1 {
+            return Err(format!(
+                "the value network maps {} → {} values, the learner observes {}",
+                self.value.inputs(),
+                self.value.outputs(),
+                ppo.envs.obs_dim()
+            ));
+        }
+        copy_mlp(&mut ppo.agent.value.net, &self.value, "value")?;
+        ppo.reward_scaler.rms = self.returns.clone();
+        Ok(())
+    }
+
+    /// This critic with `count` observation values inserted before its input `at`, as
+    /// [`ActingPolicy::with_inputs_at`] does for the policy it was saved with.
+    pub fn with_inputs_at(&self, at: usize, count: usize) -> Result<ActingCritic, String> {
+        Ok(ActingCritic { value: insert_zero_inputs(&self.value, at, count)?, returns: self.returns.clone() })
+    }
+
+    /// Observation width.
+    pub fn obs_dim(&self) -> usize {
+        self.value.inputs()
+    }
+
+    /// Writes the critic to `path` (safetensors) via a temporary sibling and a rename.
+    pub fn save(&self, path: &Path) -> Result<(), CheckpointError> {
+        let mut entries = layer_entries("value", &self.value);
+        let r = &self.returns;
+        entries.push(("returns.mean".into(), Dtype::F64, vec![1], bytes64(&r.mean)));
+        entries.push(("returns.var".into(), Dtype::F64, vec![1], bytes64(&r.var)));
+        entries.push(("returns.count".into(), Dtype::F64, vec![1], bytes64(&[r.count])));
+        write_entries(path, &entries, "repertoire-critic-1")
+    }
+
+    /// Reads a critic written by [`ActingCritic::save`].
+    pub fn load(path: &Path) -> Result<Self, CheckpointError> {
+        let bytes = std::fs::read(path).map_err(|source| CheckpointError::Io { path: path.to_path_buf(), source })?;
+        let st = SafeTensors::deserialize(&bytes).map_err(|e| corrupt(path, e.to_string()))?;
+        let value = read_mlp(path, &st, "value")?;
+        if value.outputs() != 1 {
+            return Err(corrupt(path, format!("the value network has {} outputs, expected 1", value.outputs())));
+        }
+        let (mean, var, count) =
+            (f64s(path, &st, "returns.mean")?, f64s(path, &st, "returns.var")?, f64s(path, &st, "returns.count")?);
+        if mean.len() != 1 || var.len() != 1 || count.len() != 1 {
+            return Err(corrupt(path, "the return statistics are not one value each"));
+        }
+        if !(mean[0].is_finite() && var[0].is_finite() && var[0] >= 0.0 && count[0].is_finite()) {
+            return Err(corrupt(path, "the return statistics hold a NaN, infinite or negative variance"));
+        }
+        Ok(ActingCritic { value, returns: RunningMeanStd { mean, var, count: count[0] } })
     }
 }
 

@@ -244,3 +244,61 @@ fn inputs_inserted_mid_observation_change_nothing_until_trained() {
     }
     assert!(old.with_inputs_at(5, 1).expect_err("past the end").contains("takes 4"));
 }
+
+#[test]
+fn a_critic_round_trips_continues_a_learner_and_refuses_damage() {
+    // The critic a skill is saved with: its value network and the reward normaliser's return
+    // statistics, which the skill's next training stage starts from.
+    use repertoire_learn::acting::ActingCritic;
+    let dir = temp_dir("critic");
+    let mut ppo = Ppo::new(common::tiny_config(2), common::cartpoles(2));
+    ppo.iterate();
+    ppo.iterate();
+    let critic = ActingCritic::from_ppo(&ppo);
+    assert!(critic.returns.count > 0.0, "two iterations fed the reward normaliser");
+    let path = dir.join("value.safetensors");
+    critic.save(&path).expect("save the critic");
+    let back = ActingCritic::load(&path).expect("load the critic");
+    assert_eq!(back.value.layers(), critic.value.layers());
+    assert_eq!(back.returns, critic.returns);
+
+    // A fresh learner (another seed) takes it over exactly.
+    let mut fresh = Ppo::new(PpoConfig { seed: 99, ..common::tiny_config(2) }, common::cartpoles(2));
+    assert_ne!(ActingCritic::from_ppo(&fresh).value.layers(), critic.value.layers());
+    back.load_into(&mut fresh).expect("same shapes");
+    let taken = ActingCritic::from_ppo(&fresh);
+    assert_eq!(taken.value.layers(), critic.value.layers());
+    assert_eq!(taken.returns, critic.returns);
+
+    // Inputs inserted before the task values enter with zero weight: same values.
+    let mut grown = back.with_inputs_at(2, 3).expect("insert three inputs");
+    assert_eq!(grown.obs_dim(), critic.obs_dim() + 3);
+    let obs: Vec<f32> = (0..critic.obs_dim()).map(|i| 0.3 * i as f32 - 0.4).collect();
+    let mut wide = obs.clone();
+    wide.splice(2..2, [7.0, -2.0, 50.0]);
+    let (mut a, mut b) = ([0.0f32], [0.0f32]);
+    let mut value = critic.value.clone();
+    value.forward(&obs, &mut a);
+    grown.value.forward(&wide, &mut b);
+    assert_eq!(a, b, "zero-weight inputs changed the value");
+    assert!(back.with_inputs_at(critic.obs_dim() + 1, 1).is_err(), "past the last input");
+
+    // A learner observing something else is refused, naming the widths.
+    let mut other = Ppo::new(common::tiny_config(2), vec![common::Drift::new(7), common::Drift::new(7)]);
+    let err = back.load_into(&mut other).expect_err("a 4-input critic into a 7-input learner");
+    assert!(err.contains("observes 7"), "{err}");
+
+    // Truncated or poisoned files name the file.
+    let bytes = std::fs::read(&path).expect("read");
+    std::fs::write(&path, &bytes[..bytes.len() / 2]).expect("truncate");
+    match ActingCritic::load(&path) {
+        Err(CheckpointError::Corrupt { path: p, .. }) => assert_eq!(p, path),
+        other => panic!("a truncated critic loaded: {other:?}"),
+    }
+    let mut nan = critic.clone();
+    nan.returns.var[0] = f64::NAN;
+    nan.save(&path).expect("save");
+    let err = ActingCritic::load(&path).expect_err("a NaN variance");
+    assert!(err.to_string().contains("NaN"), "{err}");
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -1,11 +1,12 @@
 //! The skill library: a folder per skill holding `manifest.ron` (what the skill was trained on
 //! and how) beside `policy.safetensors` (the acting policy) and, once evaluated,
-//! `end_poses.ron` (its successful end states, for transition fine-tuning). Loading a skill
+//! `end_poses.ron` (its successful end states, for transition fine-tuning) and `value.safetensors`
+//! (the critic it was trained with, which the skill's next training stage continues). Loading a skill
 //! into a world whose body, observation layout or rates differ is an error naming the difference.
 
 use std::path::{Path, PathBuf};
 
-use repertoire_learn::acting::ActingPolicy;
+use repertoire_learn::acting::{ActingCritic, ActingPolicy};
 use repertoire_learn::checkpoint::fnv1a;
 use repertoire_scenes::{ObservationLayout, WorldModel};
 use serde::{Deserialize, Serialize};
@@ -104,6 +105,10 @@ pub struct SkillManifest {
     pub git_hash: Option<String>,
     /// FNV-1a of `policy.safetensors` (checked on load).
     pub policy_fnv1a: u64,
+    /// FNV-1a of `value.safetensors`, the critic trained with the policy (checked when a next
+    /// stage loads it); `None` for skills saved before critics were kept.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub value_fnv1a: Option<u64>,
     /// The stages before this one, oldest first (a fine-tune appends the skill it started
     /// from); empty for a skill trained from scratch and for manifests older than the record.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
@@ -138,19 +143,33 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     repertoire_files::write_atomic(path, bytes).map_err(|e| SkillError::io(&e.path, e.action, e.source))
 }
 
+/// The critic's file in a skill folder.
+pub const VALUE_FILE: &str = "value.safetensors";
+
 /// The folder of skill `name` in `library`.
 pub fn skill_dir(library: &Path, name: &str) -> PathBuf {
     library.join(name)
 }
 
-/// Saves a skill: the policy first, then the manifest that vouches for it.
-pub fn save(library: &Path, manifest: &mut SkillManifest, policy: &ActingPolicy) -> Result<PathBuf> {
+/// Saves a skill: the policy and its critic first, then the manifest that vouches for both.
+pub fn save(
+    library: &Path,
+    manifest: &mut SkillManifest,
+    policy: &ActingPolicy,
+    critic: &ActingCritic,
+) -> Result<PathBuf> {
     let dir = skill_dir(library, &manifest.name);
     std::fs::create_dir_all(&dir).map_err(|e| SkillError::io(&dir, "cannot create the skill folder", e))?;
+    let checksum = |path: &Path| -> Result<u64> {
+        let bytes = std::fs::read(path).map_err(|e| SkillError::io(path, "cannot read back", e))?;
+        Ok(fnv1a(&bytes))
+    };
     let policy_path = dir.join("policy.safetensors");
     policy.save(&policy_path)?;
-    let bytes = std::fs::read(&policy_path).map_err(|e| SkillError::io(&policy_path, "cannot read back", e))?;
-    manifest.policy_fnv1a = fnv1a(&bytes);
+    manifest.policy_fnv1a = checksum(&policy_path)?;
+    let value_path = dir.join(VALUE_FILE);
+    critic.save(&value_path)?;
+    manifest.value_fnv1a = Some(checksum(&value_path)?);
     let text = ron::ser::to_string_pretty(manifest, ron::ser::PrettyConfig::new().depth_limit(3))
         .map_err(|e| SkillError::Invalid(format!("cannot serialise the manifest of `{}`: {e}", manifest.name)))?;
     write_atomic(&dir.join("manifest.ron"), text.as_bytes())?;
@@ -195,6 +214,32 @@ pub fn load(library: &Path, name: &str) -> Result<LibrarySkill> {
 }
 
 impl LibrarySkill {
+    /// The critic saved with this skill's policy, checked against the manifest; `None` for a
+    /// skill saved before critics were kept.
+    pub fn load_critic(&self) -> Result<Option<ActingCritic>> {
+        let Some(expected) = self.manifest.value_fnv1a else { return Ok(None) };
+        let path = self.dir.join(VALUE_FILE);
+        let bytes = std::fs::read(&path).map_err(|e| SkillError::io(&path, "cannot read the critic", e))?;
+        if fnv1a(&bytes) != expected {
+            return Err(SkillError::Mismatch {
+                path,
+                message: "the critic file does not match its manifest's checksum (modified or truncated)".into(),
+            });
+        }
+        let critic = ActingCritic::load(&path)?;
+        if critic.obs_dim() != self.policy.obs_dim() {
+            return Err(SkillError::Mismatch {
+                path,
+                message: format!(
+                    "the critic reads {} values, the policy beside it {}",
+                    critic.obs_dim(),
+                    self.policy.obs_dim()
+                ),
+            });
+        }
+        Ok(Some(critic))
+    }
+
     /// Checks that this skill can drive the character of `model`: same body, same rates, and
     /// the observation layout it was trained on.
     pub fn check_fits(&self, model: &WorldModel) -> Result<()> {

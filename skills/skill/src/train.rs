@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use indicatif::{ProgressBar, ProgressStyle};
-use repertoire_learn::acting::ActingPolicy;
+use repertoire_learn::acting::{ActingCritic, ActingPolicy};
 use repertoire_learn::checkpoint;
 use repertoire_learn::ppo::{IterationMetrics, Ppo};
 use repertoire_learn::run_dir::{RunDir, git_hash};
@@ -38,6 +38,9 @@ pub struct TrainOptions {
     /// With `init_from_library`, raise the prior policy's log standard deviation to at least
     /// this per action dimension (more exploration for a stage that learns something new).
     pub explore_log_std: Option<f32>,
+    /// With `init_from_library` and the same skill, start the value network afresh instead of
+    /// from the critic saved with the policy.
+    pub fresh_critic: bool,
     /// Write a checkpoint every this many iterations (0: only at the end).
     pub checkpoint_every: usize,
     /// Step environments sequentially (deterministic timing-independent mode; results are
@@ -64,6 +67,7 @@ impl TrainOptions {
             init_from_library: false,
             prior_skill: None,
             explore_log_std: None,
+            fresh_critic: false,
             checkpoint_every: 0,
             serial: false,
             progress: false,
@@ -126,17 +130,38 @@ fn ppo_for(setup: &SkillSetup, opts: &TrainOptions) -> Result<(Ppo<SkillEnv>, Ve
             path: prior.dir.join("policy.safetensors"),
             message: format!("cannot fine-tune `{}` from it: {m}", setup.spec.spec.name),
         })?;
+        // The critic continues with the policy when the skill continues itself (a fine-tune or
+        // its next stage); a new skill grown from another (carry from walk) earns other
+        // rewards, and starts with a fresh one.
+        let same_skill = prior.manifest.name == setup.spec.spec.name;
+        let critic =
+            if same_skill && !opts.fresh_critic { grown_critic(setup, &prior, ppo.obs_rms.dim())? } else { None };
+        if let Some(critic) = critic {
+            critic.load_into(&mut ppo).map_err(|m| SkillError::Mismatch {
+                path: prior.dir.join(library::VALUE_FILE),
+                message: format!("cannot continue `{}`'s critic from it: {m}", setup.spec.spec.name),
+            })?;
+            tracing::info!(skill = %setup.spec.spec.name, "continuing the critic saved with the policy");
+        }
     }
     Ok((ppo, lineage))
 }
 
-/// The library skill `prior`'s policy, grown to observe what `setup`'s spec observes
-/// (`wanted` values): a next training stage may observe more task values after the last (walk's
-/// target after its stage one), appended; a new skill grown from another may observe more
-/// features after the other's (carry sees the box walk never saw), inserted after the other's
-/// features and before the task values. Either enters with zero weights, so training starts
-/// from the old behaviour.
-pub fn grown_prior(setup: &SkillSetup, prior: &LibrarySkill, wanted: usize) -> Result<ActingPolicy> {
+/// How a prior's inputs grow to what a spec observes: `count` zero-weight inputs inserted
+/// before input `at`, then `append` more after the last.
+#[derive(Debug, Clone, Copy)]
+struct Growth {
+    at: usize,
+    count: usize,
+    append: usize,
+}
+
+/// The [`Growth`] from the library skill `prior` to `setup`'s spec (`wanted` values): a next
+/// training stage may observe more task values after the last (walk's target after its stage
+/// one), appended; a new skill grown from another may observe more features after the other's
+/// (carry sees the box walk never saw), inserted after the other's features and before the task
+/// values.
+fn growth(setup: &SkillSetup, prior: &LibrarySkill, wanted: usize) -> Result<Growth> {
     let name = &setup.spec.spec.name;
     let path = prior.dir.join("policy.safetensors");
     let mismatch = |message: String| SkillError::Mismatch { path: path.clone(), message };
@@ -156,14 +181,42 @@ pub fn grown_prior(setup: &SkillSetup, prior: &LibrarySkill, wanted: usize) -> R
             prior.manifest.name
         )));
     }
-    if wanted == have {
+    let count = new.size - old.size;
+    Ok(Growth { at: old.size, count, append: wanted - have - count })
+}
+
+/// The library skill `prior`'s policy, grown to observe what `setup`'s spec observes
+/// (`wanted` values, see [`Growth`]). What it adds enters with zero weights, so training starts
+/// from the old behaviour.
+pub fn grown_prior(setup: &SkillSetup, prior: &LibrarySkill, wanted: usize) -> Result<ActingPolicy> {
+    let g = growth(setup, prior, wanted)?;
+    if g.count + g.append == 0 {
         return Ok(prior.policy.clone());
     }
-    tracing::info!(skill = %name, from = %prior.manifest.name, inputs = have, to = wanted, "growing the policy's input");
+    let name = &setup.spec.spec.name;
+    tracing::info!(skill = %name, from = %prior.manifest.name, inputs = prior.policy.obs_dim(), to = wanted, "growing the policy's input");
     let grow = |p: &ActingPolicy| -> std::result::Result<ActingPolicy, String> {
-        p.with_inputs_at(old.size, new.size - old.size)?.widened(wanted)
+        p.with_inputs_at(g.at, g.count)?.widened(wanted)
     };
-    grow(&prior.policy).map_err(|m| mismatch(format!("cannot continue `{name}` from it: {m}")))
+    grow(&prior.policy).map_err(|m| SkillError::Mismatch {
+        path: prior.dir.join("policy.safetensors"),
+        message: format!("cannot continue `{name}` from it: {m}"),
+    })
+}
+
+/// The critic saved with `prior`, grown like its policy ([`grown_prior`]); `None` when the
+/// skill was saved without one.
+pub fn grown_critic(setup: &SkillSetup, prior: &LibrarySkill, wanted: usize) -> Result<Option<ActingCritic>> {
+    let Some(critic) = prior.load_critic()? else { return Ok(None) };
+    let g = growth(setup, prior, wanted)?;
+    let grow = |c: &ActingCritic| -> std::result::Result<ActingCritic, String> {
+        let c = c.with_inputs_at(g.at, g.count)?;
+        c.with_inputs_at(c.obs_dim(), g.append)
+    };
+    grow(&critic).map(Some).map_err(|m| SkillError::Mismatch {
+        path: prior.dir.join(library::VALUE_FILE),
+        message: format!("cannot continue `{}`'s critic from it: {m}", setup.spec.spec.name),
+    })
 }
 
 /// Trains (or fine-tunes) the skill of `setup` and writes it to the library.
@@ -256,9 +309,11 @@ pub fn train(setup: &SkillSetup, opts: &TrainOptions) -> Result<TrainOutcome> {
         command: opts.command.clone(),
         git_hash: git_hash(),
         policy_fnv1a: 0,
+        value_fnv1a: None,
         lineage,
     };
-    let skill_dir = library::save(&opts.library, &mut manifest, &ActingPolicy::from_ppo(&ppo))?;
+    let skill_dir =
+        library::save(&opts.library, &mut manifest, &ActingPolicy::from_ppo(&ppo), &ActingCritic::from_ppo(&ppo))?;
     Ok(TrainOutcome { skill_dir, run_dir: run.path().to_path_buf(), figures, history })
 }
 

@@ -32,14 +32,16 @@ fn setup(spec: &str, library: &Path) -> SkillSetup {
 
 #[test]
 fn every_shipped_spec_builds() {
-    // Experiments and variants sit beside the library's specs; none may rot.
+    // Experiments and variants sit beside the library's specs; none may rot. Specs that start
+    // from predecessors' pools (sit_from_wide) read them from the committed library.
+    let library = Path::new(env!("CARGO_MANIFEST_DIR")).join("../library");
     let mut built = Vec::new();
     for entry in std::fs::read_dir(specs()).unwrap() {
         let path = entry.unwrap().path();
         let text = std::fs::read_to_string(&path).unwrap_or_default();
         if path.extension().is_some_and(|e| e == "ron") && text.contains("SkillSpec(") {
             let spec = SpecFile::load(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-            SkillSetup::new(spec, &temp("every-spec")).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            SkillSetup::new(spec, &library).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
             built.push(path.file_name().unwrap().to_string_lossy().into_owned());
         }
     }
@@ -227,6 +229,65 @@ fn a_trained_skill_round_trips_through_the_library_and_refuses_another_body() {
     std::fs::write(&policy, bytes).unwrap();
     let err = library::load(&lib, "turn_left").expect_err("corrupt policy").to_string();
     assert!(err.contains("policy.safetensors"), "{err}");
+}
+
+#[test]
+fn a_skills_next_stage_continues_the_critic_saved_with_its_policy() {
+    let lib = temp("critic");
+    let s = setup("turn_left.ron", &lib);
+    train(&s, &TrainOptions::quick(&lib, &lib.join("run"), 2, 4, 3)).expect("train");
+    let skill = library::load(&lib, "turn_left").expect("load");
+    assert!(skill.manifest.value_fnv1a.is_some(), "the manifest vouches for the critic");
+    let critic = skill.load_critic().expect("a sound critic").expect("saved with the policy");
+    assert_eq!(critic.obs_dim(), skill.policy.obs_dim());
+    assert!(critic.returns.count > 0.0, "the reward normaliser's statistics come with it");
+
+    // A fine-tune of the same skill starts from that critic; `fresh_critic` from a new one:
+    // the same seed then gives another value loss in the very first update.
+    let finetune = |fresh_critic: bool, run: &str| TrainOptions {
+        init_from_library: true,
+        fresh_critic,
+        ..TrainOptions::quick(&lib, &lib.join(run), 1, 4, 5)
+    };
+    let backup = lib.join("turn_left-before");
+    std::fs::create_dir_all(&backup).unwrap();
+    for f in ["manifest.ron", "policy.safetensors", library::VALUE_FILE] {
+        std::fs::copy(lib.join("turn_left").join(f), backup.join(f)).unwrap();
+    }
+    let restore = || {
+        for f in ["manifest.ron", "policy.safetensors", library::VALUE_FILE] {
+            std::fs::copy(backup.join(f), lib.join("turn_left").join(f)).unwrap();
+        }
+    };
+    let continued = train(&s, &finetune(false, "run-continued")).expect("fine-tune, critic continued");
+    restore();
+    let fresh = train(&s, &finetune(true, "run-fresh")).expect("fine-tune, fresh critic");
+    restore();
+    assert_ne!(continued.history[0].value_loss, fresh.history[0].value_loss, "the saved critic was not used");
+
+    // A damaged critic stops a fine-tune that would continue it, naming the file; a fresh
+    // critic does not read it.
+    let value = lib.join("turn_left").join(library::VALUE_FILE);
+    let mut bytes = std::fs::read(&value).unwrap();
+    let n = bytes.len();
+    bytes[n - 2] ^= 0x55;
+    std::fs::write(&value, bytes).unwrap();
+    let err = train(&s, &finetune(false, "run-damaged")).expect_err("a damaged critic").to_string();
+    assert!(err.contains("value.safetensors") && err.contains("checksum"), "{err}");
+    train(&s, &finetune(true, "run-damaged-fresh")).expect("a fresh critic ignores the file");
+
+    // A skill saved before critics were kept fine-tunes with a fresh one.
+    restore();
+    let manifest = lib.join("turn_left").join("manifest.ron");
+    let text = std::fs::read_to_string(&manifest).unwrap();
+    let old: String =
+        text.lines().filter(|l| !l.trim_start().starts_with("value_fnv1a")).collect::<Vec<_>>().join("\n");
+    assert_ne!(old, text, "the manifest names its critic");
+    std::fs::write(&manifest, old).unwrap();
+    std::fs::remove_file(&value).unwrap();
+    assert!(library::load(&lib, "turn_left").unwrap().load_critic().unwrap().is_none());
+    train(&s, &finetune(false, "run-old")).expect("an old skill fine-tunes");
+    assert!(value.exists(), "and is saved with a critic from then on");
 }
 
 #[test]
