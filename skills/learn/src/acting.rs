@@ -325,7 +325,12 @@ impl ActingCritic {
     /// Reads a critic written by [`ActingCritic::save`].
     pub fn load(path: &Path) -> Result<Self, CheckpointError> {
         let bytes = std::fs::read(path).map_err(|source| CheckpointError::Io { path: path.to_path_buf(), source })?;
-        let st = SafeTensors::deserialize(&bytes).map_err(|e| corrupt(path, e.to_string()))?;
+        Self::parse(path, &bytes)
+    }
+
+    /// [`ActingCritic::load`] of bytes already read from `path` (named in errors).
+    pub fn parse(path: &Path, bytes: &[u8]) -> Result<Self, CheckpointError> {
+        let st = SafeTensors::deserialize(bytes).map_err(|e| corrupt(path, e.to_string()))?;
         let value = read_mlp(path, &st, "value")?;
         if value.outputs() != 1 {
             return Err(corrupt(path, format!("the value network has {} outputs, expected 1", value.outputs())));

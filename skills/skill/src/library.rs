@@ -226,7 +226,7 @@ impl LibrarySkill {
                 message: "the critic file does not match its manifest's checksum (modified or truncated)".into(),
             });
         }
-        let critic = ActingCritic::load(&path)?;
+        let critic = ActingCritic::parse(&path, &bytes)?;
         if critic.obs_dim() != self.policy.obs_dim() {
             return Err(SkillError::Mismatch {
                 path,

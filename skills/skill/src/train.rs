@@ -137,10 +137,7 @@ fn ppo_for(setup: &SkillSetup, opts: &TrainOptions) -> Result<(Ppo<SkillEnv>, Ve
         let critic =
             if same_skill && !opts.fresh_critic { grown_critic(setup, &prior, ppo.obs_rms.dim())? } else { None };
         if let Some(critic) = critic {
-            critic.load_into(&mut ppo).map_err(|m| SkillError::Mismatch {
-                path: prior.dir.join(library::VALUE_FILE),
-                message: format!("cannot continue `{}`'s critic from it: {m}", setup.spec.spec.name),
-            })?;
+            critic.load_into(&mut ppo).map_err(|m| critic_mismatch(setup, &prior, m))?;
             tracing::info!(skill = %setup.spec.spec.name, "continuing the critic saved with the policy");
         }
     }
@@ -213,10 +210,15 @@ pub fn grown_critic(setup: &SkillSetup, prior: &LibrarySkill, wanted: usize) -> 
         let c = c.with_inputs_at(g.at, g.count)?;
         c.with_inputs_at(c.obs_dim(), g.append)
     };
-    grow(&critic).map(Some).map_err(|m| SkillError::Mismatch {
+    grow(&critic).map(Some).map_err(|m| critic_mismatch(setup, prior, m))
+}
+
+/// A critic of `prior` that `setup`'s skill cannot continue, and why.
+fn critic_mismatch(setup: &SkillSetup, prior: &LibrarySkill, why: String) -> SkillError {
+    SkillError::Mismatch {
         path: prior.dir.join(library::VALUE_FILE),
-        message: format!("cannot continue `{}`'s critic from it: {m}", setup.spec.spec.name),
-    })
+        message: format!("cannot continue `{}`'s critic from it: {why}", setup.spec.spec.name),
+    }
 }
 
 /// Trains (or fine-tunes) the skill of `setup` and writes it to the library.
