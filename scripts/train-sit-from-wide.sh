@@ -10,7 +10,7 @@
 # Usage: bash scripts/train-sit-from-wide.sh [LIBRARY] — LIBRARY must hold sit and the wide
 # turns with their pools; env: TRIALS (1000), EXTRA (more arguments for every train, e.g.
 # "--envs 8"). The library's meta-controller pins its skills' weights: retrain it afterwards
-# (`repertoire meta train --library LIBRARY --iterations 600`).
+# (`repertoire meta train --library LIBRARY --iterations 2400`).
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 lib="${1:-skills/library}"

@@ -13,7 +13,7 @@
 #      keeps its sit.
 # Usage: bash scripts/train-wide-turns.sh [LIBRARY] — env: TRIALS (1000), EXTRA (more arguments
 # for every train/finetune, e.g. "--envs 8"). The library's meta-controller pins every skill's
-# weights, so retrain it afterwards (`repertoire meta train --library LIBRARY --iterations 600`).
+# weights, so retrain it afterwards (`repertoire meta train --library LIBRARY --iterations 2400`).
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 lib="${1:-skills/library}"

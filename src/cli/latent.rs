@@ -173,7 +173,7 @@ fn spec_paths(specs: &Path, skills: &[String]) -> Result<Vec<PathBuf>> {
 }
 
 pub fn run(cmd: LatentCommand) -> Result<()> {
-    let command = std::env::args().collect::<Vec<_>>().join(" ");
+    let command = super::invocation();
     match cmd {
         LatentCommand::Collect { skills, specs, library, steps, k, noise, batch, seed, out } => {
             let out = out.unwrap_or_else(|| default_run_dir(Path::new("runs"), "latent-data", seed));

@@ -275,7 +275,7 @@ pub fn setup(file: Option<&PathBuf>, library: &Path, chain: &[String], skills: &
 }
 
 pub fn run(cmd: MetaCommand) -> Result<()> {
-    let command = std::env::args().collect::<Vec<_>>().join(" ");
+    let command = super::invocation();
     match cmd {
         MetaCommand::Train {
             file,

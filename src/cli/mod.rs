@@ -100,6 +100,29 @@ pub fn non_negative(s: &str) -> std::result::Result<f32, String> {
     }
 }
 
+/// The command line as a manifest records it: `repertoire` and the arguments, each quoted for
+/// a POSIX shell where it needs it, so that it re-runs as written whatever the binary was called
+/// or where it lay (`target/release/repertoire`, a copy in `/tmp`).
+pub fn invocation() -> String {
+    invocation_of(std::env::args().skip(1))
+}
+
+fn invocation_of(args: impl Iterator<Item = String>) -> String {
+    let mut out = String::from("repertoire");
+    for a in args {
+        out.push(' ');
+        let plain = !a.is_empty() && a.chars().all(|c| c.is_ascii_alphanumeric() || "-_./,:=+@%".contains(c));
+        if plain {
+            out.push_str(&a);
+        } else {
+            out.push('\'');
+            out.push_str(&a.replace('\'', "'\\''"));
+            out.push('\'');
+        }
+    }
+    out
+}
+
 /// Dispatches one parsed command line.
 pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
@@ -129,4 +152,16 @@ pub fn load_scenario(path: Option<&PathBuf>) -> Result<ScenarioFile> {
         Some(p) => ScenarioFile::load(p)?,
         None => ScenarioFile::builtin_default(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::invocation_of;
+
+    #[test]
+    fn the_recorded_command_names_repertoire_and_quotes_what_a_shell_would_split() {
+        let args = ["meta", "train", "--out", "/tmp/my run", "--chain", "walk,sit", "it's", ""];
+        let got = invocation_of(args.iter().map(|s| s.to_string()));
+        assert_eq!(got, "repertoire meta train --out '/tmp/my run' --chain walk,sit 'it'\\''s' ''");
+    }
 }

@@ -144,7 +144,7 @@ pub struct TrainArgs {
 }
 
 pub fn run(cmd: SkillCommand) -> Result<()> {
-    let command = std::env::args().collect::<Vec<_>>().join(" ");
+    let command = super::invocation();
     match cmd {
         SkillCommand::Train { spec, warm_start, warm_start_from, common } => {
             let prior = (warm_start || warm_start_from.is_some()).then_some(warm_start_from);

@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 
 use dfdx::prelude::*;
 use rand::Rng;
-use repertoire_learn::checkpoint::fnv1a;
+use repertoire_learn::checkpoint::{CheckpointError, fnv1a};
 use repertoire_learn::nn::{Linear, Matrix, MlpInference, ParamMut, Parameters, Vector, prefixed};
 use repertoire_learn::policy::{HALF_LN_2PI, Taped};
 use repertoire_scenes::obs::LayoutEntry;
@@ -522,20 +522,12 @@ fn weight_entries(prefix: &str, mlp: &MlpInference, out: &mut Vec<(String, Vec<u
     }
 }
 
+/// The MLP under `prefix`, read by the learning core's reader, its error re-homed here.
 fn read_mlp(path: &Path, st: &SafeTensors<'_>, prefix: &str) -> Result<MlpInference> {
-    let mut layers = Vec::new();
-    for i in 0.. {
-        if st.tensor(&format!("{prefix}.{i}.weight")).is_err() {
-            break;
-        }
-        let (shape, w) = read_f32(path, st, &format!("{prefix}.{i}.weight"))?;
-        let (_, b) = read_f32(path, st, &format!("{prefix}.{i}.bias"))?;
-        if shape.len() != 2 {
-            return Err(LatentError::corrupt(path, format!("{prefix}.{i}.weight has shape {shape:?}, expected 2-D")));
-        }
-        layers.push((shape[0], shape[1], w, b));
-    }
-    MlpInference::from_layers(layers).map_err(|m| LatentError::corrupt(path, format!("{prefix}: {m}")))
+    repertoire_learn::acting::read_mlp(path, st, prefix).map_err(|e| match e {
+        CheckpointError::Corrupt { reason, .. } => LatentError::corrupt(path, reason),
+        other => LatentError::corrupt(path, other.to_string()),
+    })
 }
 
 fn read_f32(path: &Path, st: &SafeTensors<'_>, name: &str) -> Result<(Vec<usize>, Vec<f32>)> {

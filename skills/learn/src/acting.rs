@@ -197,8 +197,12 @@ fn layer_entries(prefix: &str, mlp: &MlpInference) -> Vec<Entry> {
     entries
 }
 
-/// Reads the MLP [`layer_entries`] wrote under `prefix`.
-fn read_mlp(path: &Path, st: &SafeTensors<'_>, prefix: &str) -> Result<MlpInference, CheckpointError> {
+/// Reads the MLP stored under `prefix` (`PREFIX.i.weight` `[inputs, outputs]` and
+/// `PREFIX.i.bias`, f32, for i = 0, 1, … until one is missing), as [`ActingPolicy::save`] and
+/// [`ActingCritic::save`] write it. `Err` is [`CheckpointError::Corrupt`] naming `path` and the
+/// tensor: a missing bias, another dtype, a shape that is not 2-D or does not chain, a NaN or an
+/// infinity.
+pub fn read_mlp(path: &Path, st: &SafeTensors<'_>, prefix: &str) -> Result<MlpInference, CheckpointError> {
     let mut layers = Vec::new();
     for i in 0.. {
         if st.tensor(&format!("{prefix}.{i}.weight")).is_err() {
