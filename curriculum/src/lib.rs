@@ -90,6 +90,24 @@ impl ZoneCurriculum {
         }
     }
 
+    /// What in `spec` differs from the schedule this curriculum was made from (its zones,
+    /// threshold, window, budget, whether passed zones stay open), or `None`: a saved
+    /// curriculum (a resumed training run's) continues only under the schedule it began with.
+    pub fn differs_from(&self, spec: &Curriculum) -> Option<String> {
+        let fresh = ZoneCurriculum::new(spec, self.enabled);
+        let fields: [(&str, String, String); 5] = [
+            ("zones", format!("{:?}", self.zones), format!("{:?}", fresh.zones)),
+            ("advance_at", self.advance_at.to_string(), fresh.advance_at.to_string()),
+            ("window", self.window.to_string(), fresh.window.to_string()),
+            ("max_episodes", format!("{:?}", self.max_episodes), format!("{:?}", fresh.max_episodes)),
+            ("keep_passed", self.keep_passed.to_string(), fresh.keep_passed.to_string()),
+        ];
+        fields
+            .into_iter()
+            .find(|(_, saved, now)| saved != now)
+            .map(|(what, saved, now)| format!("{what} {saved}, now {now}"))
+    }
+
     /// The zones episodes may start in now: every zone up to the current one (only the current
     /// one with `keep_passed: false`) when enabled, else all of them.
     pub fn open_zones(&self) -> &[String] {
@@ -273,5 +291,23 @@ mod tests {
         let mut never = ZoneCurriculum::new(&spec(), true);
         assert!((0..1000).all(|_| never.record(false).is_none()));
         assert_eq!(never.current(), "front");
+    }
+
+    #[test]
+    fn a_saved_curriculum_round_trips_and_names_what_a_changed_schedule_changed() {
+        let mut c = ZoneCurriculum::new(&Curriculum { max_episodes: Some(25), ..spec() }, true);
+        for k in 0..30 {
+            c.record(k % 3 == 0);
+        }
+        let text = ron::to_string(&c).expect("serialise");
+        let back: ZoneCurriculum = ron::from_str(&text).expect("parse");
+        assert_eq!(back, c, "zone, window, episode count and history survive a checkpoint");
+        let same = Curriculum { max_episodes: Some(25), ..spec() };
+        assert_eq!(back.differs_from(&same), None);
+        assert_eq!(back.differs_from(&spec()).as_deref(), Some("max_episodes Some(25), now None"));
+        let moved = Curriculum { advance_at: 0.5, max_episodes: Some(25), ..spec() };
+        assert_eq!(back.differs_from(&moved).as_deref(), Some("advance_at 0.8, now 0.5"));
+        let renamed = Curriculum { zones: vec!["front".into(), "behind".into()], max_episodes: Some(25), ..spec() };
+        assert!(back.differs_from(&renamed).unwrap().starts_with("zones [\"front\", \"sides\", \"behind\"]"));
     }
 }

@@ -17,7 +17,7 @@ use repertoire_learn::ppo::{Ppo, PpoConfig};
 use crate::env::{MetaEnv, MetaSetup};
 use crate::error::{MetaError, Result};
 use crate::planner::{Planner, PlannerConfig};
-use crate::train::{MetaManifest, MetaTrainOptions, Schedule, TrainedRun, run_iterations, save_controller};
+use crate::train::{MetaManifest, MetaTrainOptions, Session, TrainedRun, save_controller};
 
 /// Options of a distillation.
 #[derive(Debug, Clone)]
@@ -138,22 +138,27 @@ pub fn distill(setup: Arc<MetaSetup>, opts: &DistillOptions) -> Result<(MetaMani
     let mut ppo = Ppo::new(opts.ppo.clone(), envs);
     let losses = ppo.behaviour_clone(&obs, &actions, &masks, opts.epochs, opts.batch).map_err(MetaError::Invalid)?;
     let fitting_s = fit_started.elapsed().as_secs_f64();
-    let (mut curriculum, mut advances) = (false, Vec::new());
-    if let Some(train) = &opts.then_train {
-        ppo.cfg.num_iterations = train.ppo.num_iterations;
-        let mut schedule = Schedule::start(&setup.model, &setup.zones, train)?;
-        run_iterations(&mut ppo, &mut schedule, train, "skills, from the planner")?;
-        curriculum = schedule.is_on();
-        advances = schedule.into_history();
-    }
-
-    let run = TrainedRun {
-        samples: demonstrations as u64 + ppo.global_step,
-        seconds: started.elapsed().as_secs_f64(),
-        curriculum,
-        advances,
-        command: &opts.command,
+    let (ppo, mut run) = match &opts.then_train {
+        Some(train) => {
+            ppo.cfg.num_iterations = train.ppo.num_iterations;
+            let mut session = Session::fresh(ppo, &setup.model, &setup.zones, train, setup.low_level())?;
+            session.run(train, "skills, from the planner")?;
+            session.finish()
+        }
+        None => {
+            let run = TrainedRun {
+                samples: 0,
+                seconds: 0.0,
+                curriculum: false,
+                advances: Vec::new(),
+                command: opts.command.clone(),
+                resumed: Vec::new(),
+            };
+            (ppo, run)
+        }
     };
+    run.samples += demonstrations as u64;
+    run.seconds = started.elapsed().as_secs_f64();
     let manifest = save_controller(&setup, &ppo, &opts.out, run)?;
     let figures = DistillFigures { episodes: episodes.len(), successes, demonstrations, losses, planning_s, fitting_s };
     Ok((manifest, figures))

@@ -296,6 +296,12 @@ impl MetaSetup {
         check_zones(&self.model, zones)
     }
 
+    /// What a controller trained here drives, one entry per skill in option order (`name`
+    /// and its policy checksum): a training checkpoint continues only over the same.
+    pub fn low_level(&self) -> Vec<String> {
+        self.skills.iter().map(|s| format!("{} {:016x}", s.name, s.policy_fnv1a)).collect()
+    }
+
     /// Observation width of the meta-controller.
     pub fn obs_dim(&self) -> usize {
         self.layout.size + self.task.extra_dim() + self.skills.len() + 1

@@ -19,7 +19,6 @@
 
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, RwLock};
-use std::time::Instant;
 
 use rand::Rng;
 use repertoire_curriculum::Advance;
@@ -28,7 +27,7 @@ use repertoire_latent::high::{LatentEnv, Z_BOUND};
 use repertoire_latent::model::LatentPolicy;
 use repertoire_learn::acting::ActingPolicy;
 use repertoire_learn::env::{Env, EnvRng, MAX_TERMS, StepOutcome};
-use repertoire_learn::ppo::{IterationMetrics, Ppo, PpoConfig};
+use repertoire_learn::ppo::{IterationMetrics, PpoConfig};
 use repertoire_learn::run_dir::git_hash;
 use repertoire_scenes::math::wrap_angle;
 use repertoire_scenes::{Feature, ObservationLayout, World, WorldModel};
@@ -375,8 +374,11 @@ pub struct LatentMetaManifest {
     pub curriculum: bool,
     /// Zone switches.
     pub advances: Vec<Advance>,
-    /// The command that trained it.
+    /// The command that trained it (that started the run, when it was resumed).
     pub command: String,
+    /// Where the run was continued from its checkpoints (`meta train --resume`), oldest first.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub resumed: Vec<crate::train::Resume>,
     /// Git commit.
     pub git_hash: Option<String>,
 }
@@ -416,11 +418,16 @@ pub fn train(
     setup: Arc<LatentSetup>,
     opts: &crate::train::MetaTrainOptions,
 ) -> Result<(LatentMetaManifest, Vec<IterationMetrics>)> {
-    let mut schedule = crate::train::Schedule::start(&setup.model, &setup.zones, opts)?;
     let envs = LatentMetaEnv::many(&setup, opts.ppo.num_envs)?;
-    let mut ppo = Ppo::new(opts.ppo.clone(), envs);
-    let started = Instant::now();
-    let history = crate::train::run_iterations(&mut ppo, &mut schedule, opts, "latent")?;
+    let low_level = vec![format!(
+        "latent {} {:016x}, z held {} ticks",
+        setup.latent_dir.display(),
+        setup.policy.manifest.weights_fnv1a,
+        setup.hold
+    )];
+    let mut session = crate::train::Session::open(&setup.model, &setup.zones, envs, opts, low_level)?;
+    let history = session.run(opts, "latent")?;
+    let (ppo, run) = session.finish();
     std::fs::create_dir_all(&opts.out).map_err(|e| MetaError::Invalid(format!("{}: {e}", opts.out.display())))?;
     let policy = ActingPolicy::from_ppo(&ppo);
     policy.save(&opts.out.join(WEIGHTS_FILE)).map_err(|e| MetaError::Invalid(e.to_string()))?;
@@ -434,11 +441,12 @@ pub fn train(
         obs_dim: setup.obs_dim(),
         ppo: ppo.cfg.clone(),
         iterations: ppo.iteration,
-        samples: ppo.global_step,
-        seconds: started.elapsed().as_secs_f64(),
-        curriculum: schedule.is_on(),
-        advances: schedule.into_history(),
-        command: opts.command.clone(),
+        samples: run.samples,
+        seconds: run.seconds,
+        curriculum: run.curriculum,
+        advances: run.advances,
+        command: run.command,
+        resumed: run.resumed,
         git_hash: git_hash(),
     };
     let text = ron::ser::to_string_pretty(&manifest, ron::ser::PrettyConfig::new().depth_limit(2))

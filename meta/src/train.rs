@@ -7,12 +7,13 @@ use std::path::{Path, PathBuf};
 use std::sync::{Arc, RwLock};
 use std::time::Instant;
 
+use indicatif::{ProgressBar, ProgressStyle};
 use repertoire_curriculum::{Advance, ZoneCurriculum};
 use repertoire_learn::acting::ActingHybrid;
 use repertoire_learn::checkpoint;
 use repertoire_learn::env::{Env, EpisodeStats};
 use repertoire_learn::ppo::{IterationMetrics, Ppo, PpoConfig};
-use repertoire_learn::run_dir::{RunDir, git_hash};
+use repertoire_learn::run_dir::{RunDir, drop_rows_after, git_hash};
 use repertoire_scenes::WorldModel;
 use serde::{Deserialize, Serialize};
 
@@ -47,10 +48,22 @@ pub struct MetaManifest {
     pub curriculum: bool,
     /// Zone switches.
     pub advances: Vec<Advance>,
-    /// The command that trained it.
+    /// The command that trained it (that started the run, when it was resumed).
     pub command: String,
+    /// Where the run was continued from its checkpoints (`meta train --resume`), oldest first.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub resumed: Vec<Resume>,
     /// Git commit.
     pub git_hash: Option<String>,
+}
+
+/// A training run continued from one of its checkpoints.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Resume {
+    /// Iterations done when it was continued.
+    pub iteration: usize,
+    /// The command that continued it.
+    pub command: String,
 }
 
 /// Options of a meta-controller training run.
@@ -66,7 +79,16 @@ pub struct MetaTrainOptions {
     pub curriculum: bool,
     /// The command line.
     pub command: String,
+    /// Continue the run whose checkpoint this is (a stem, `RUN/checkpoints/iter-000600`):
+    /// learner, optimiser, environments and curriculum as they were, up to `ppo.num_iterations`
+    /// in all (see [`resumed_ppo`]).
+    pub resume: Option<PathBuf>,
+    /// Write a checkpoint every this many iterations (0: only after the last).
+    pub checkpoint_every: usize,
 }
+
+/// Iterations between a training run's checkpoints unless asked otherwise.
+pub const CHECKPOINT_EVERY: usize = 100;
 
 /// PPO defaults for the meta-controller: decisions at 2 Hz are few and costly (30 control
 /// ticks with a skill each), so rollouts are short and the discount is per decision.
@@ -85,33 +107,27 @@ pub fn default_ppo() -> PpoConfig {
 
 /// Trains the meta-controller of `setup`; returns the manifest and each iteration's metrics.
 pub fn train(setup: Arc<MetaSetup>, opts: &MetaTrainOptions) -> Result<(MetaManifest, Vec<IterationMetrics>)> {
-    let mut schedule = Schedule::start(&setup.model, &setup.zones, opts)?;
     let envs = (0..opts.ppo.num_envs).map(|_| MetaEnv::new(Arc::clone(&setup))).collect();
-    let mut ppo = Ppo::new(opts.ppo.clone(), envs);
-    let started = Instant::now();
-    let history = run_iterations(&mut ppo, &mut schedule, opts, "skills")?;
-    let run = TrainedRun {
-        samples: ppo.global_step,
-        seconds: started.elapsed().as_secs_f64(),
-        curriculum: schedule.is_on(),
-        advances: schedule.into_history(),
-        command: &opts.command,
-    };
+    let mut session = Session::open(&setup.model, &setup.zones, envs, opts, setup.low_level())?;
+    let history = session.run(opts, "skills")?;
+    let (ppo, run) = session.finish();
     let manifest = save_controller(&setup, &ppo, &opts.out, run)?;
     Ok((manifest, history))
 }
 
 /// What a controller's manifest records of the run that made it.
-pub(crate) struct TrainedRun<'a> {
+pub(crate) struct TrainedRun {
     /// Decisions it learned from.
     pub samples: u64,
-    /// Wall-clock seconds.
+    /// Wall-clock seconds, over every session of a resumed run.
     pub seconds: f64,
     /// Whether the zone curriculum was on, and its switches.
     pub curriculum: bool,
     pub advances: Vec<Advance>,
-    /// The command line.
-    pub command: &'a str,
+    /// The command that started the run.
+    pub command: String,
+    /// The commands that continued it.
+    pub resumed: Vec<Resume>,
 }
 
 /// Writes `ppo`'s hybrid head (`meta.safetensors`) and its manifest (`meta.ron`, pinning the
@@ -120,7 +136,7 @@ pub(crate) fn save_controller<E: Env>(
     setup: &MetaSetup,
     ppo: &Ppo<E>,
     out: &Path,
-    run: TrainedRun<'_>,
+    run: TrainedRun,
 ) -> Result<MetaManifest> {
     std::fs::create_dir_all(out).map_err(|e| MetaError::Invalid(format!("{}: {e}", out.display())))?;
     let head = ActingHybrid::from_ppo(ppo).expect("the meta environment has hybrid actions");
@@ -137,7 +153,8 @@ pub(crate) fn save_controller<E: Env>(
         seconds: run.seconds,
         curriculum: run.curriculum,
         advances: run.advances,
-        command: run.command.to_string(),
+        command: run.command,
+        resumed: run.resumed,
         git_hash: git_hash(),
     };
     let text = ron::ser::to_string_pretty(&manifest, ron::ser::PrettyConfig::new().depth_limit(2))
@@ -146,36 +163,243 @@ pub(crate) fn save_controller<E: Env>(
     Ok(manifest)
 }
 
-/// Runs `ppo` to its iteration count with the zone curriculum `schedule`, logging every
-/// iteration to the run directory and saving the last checkpoint there; returns each
-/// iteration's metrics. `low_level` names the controller in the logs (`skills`, `latent`).
-pub(crate) fn run_iterations<E: Env>(
-    ppo: &mut Ppo<E>,
-    schedule: &mut Schedule,
-    opts: &MetaTrainOptions,
-    low_level: &str,
-) -> Result<Vec<IterationMetrics>> {
-    let io = |e| MetaError::Invalid(format!("{}: {e}", opts.run_dir.display()));
-    let mut run = RunDir::create(&opts.run_dir, &ppo.cfg).map_err(io)?;
-    let mut history = Vec::new();
-    while ppo.iteration < ppo.cfg.num_iterations {
-        let m = ppo.iterate();
-        run.log(&m).map_err(io)?;
-        schedule.after_iteration(m.iteration, &ppo.last_episodes)?;
-        tracing::info!(
-            low_level,
-            iteration = m.iteration,
-            mean_return = m.mean_return,
-            success = m.terms.first().map_or(f32::NAN, |t| t.1),
-            zone = schedule.zone(),
-            "meta iteration"
-        );
-        history.push(m);
-    }
-    let last = run.checkpoint_stem(ppo.iteration);
-    checkpoint::save(ppo, &last).map_err(|e| MetaError::Invalid(e.to_string()))?;
-    Ok(history)
+/// What a checkpoint of a controller's training run keeps beside the learner's own files
+/// (`<stem>.run.ron`): what the controller drives, the curriculum, and the run's history.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+struct RunState {
+    /// The low level, one entry per skill (`name weights`) or the latent model: a checkpoint
+    /// continues only over the low level it was trained over.
+    low_level: Vec<String>,
+    /// The zone curriculum as it stood (`None`: every zone open).
+    curriculum: Option<ZoneCurriculum>,
+    /// Wall-clock seconds trained so far.
+    seconds: f64,
+    /// The command that started the run.
+    command: String,
+    /// The commands that continued it.
+    resumed: Vec<Resume>,
 }
+
+/// `<stem>.run.ron`.
+fn state_path(stem: &Path) -> PathBuf {
+    let mut s = stem.as_os_str().to_owned();
+    s.push(".run.ron");
+    PathBuf::from(s)
+}
+
+/// The run directory a checkpoint stem lies in (`RUN` of `RUN/checkpoints/iter-000600`).
+pub fn run_of_checkpoint(stem: &Path) -> Option<PathBuf> {
+    let dir = stem.parent()?;
+    (dir.file_name()? == "checkpoints").then(|| dir.parent().map(Path::to_path_buf)).flatten()
+}
+
+/// The PPO settings of a run that continues the checkpoint `stem`: the checkpoint's own, with
+/// the total iterations (`iterations`; learning-rate annealing then runs to the new total from
+/// where it stands) and entropy bonus (`ent_coef`) the command line asks for. A seed or an
+/// environment count other than the checkpoint's is refused by [`train`], naming both.
+pub fn resumed_ppo(
+    stem: &Path,
+    iterations: Option<usize>,
+    envs: Option<usize>,
+    seed: Option<u64>,
+    ent_coef: Option<f32>,
+) -> Result<PpoConfig> {
+    let mut path = stem.as_os_str().to_owned();
+    path.push(".ron");
+    let saved = checkpoint::read_manifest(Path::new(&path)).map_err(|e| MetaError::Invalid(e.to_string()))?.config;
+    Ok(PpoConfig {
+        num_iterations: iterations.unwrap_or(saved.num_iterations),
+        num_envs: envs.unwrap_or(saved.num_envs),
+        seed: seed.unwrap_or(saved.seed),
+        ent_coef: ent_coef.unwrap_or(saved.ent_coef),
+        ..saved
+    })
+}
+
+/// A training run in this process: the learner, the zone curriculum and the run's history, fresh
+/// or continued from a checkpoint; [`Session::run`] trains to the learner's iteration count,
+/// logging every iteration and writing checkpoints, and [`Session::finish`] hands over the
+/// learner and what its manifest records. Shared by the skills' and the latent high level's
+/// trainers and by distillation.
+pub(crate) struct Session<'z, E: Env> {
+    ppo: Ppo<E>,
+    schedule: Schedule<'z>,
+    /// `seconds`: trained before this process.
+    state: RunState,
+    started: Instant,
+}
+
+impl<'z, E: Env> Session<'z, E> {
+    /// `opts.ppo` over `envs` from scratch, or the checkpoint `opts.resume` continued: refused
+    /// when it was trained over another low level than `low_level`, with(out) the curriculum
+    /// when `opts` asks otherwise, under another curriculum schedule, with other PPO settings
+    /// than `opts.ppo` (but for the iteration total and the entropy bonus), or past
+    /// `opts.ppo.num_iterations` already.
+    pub(crate) fn open(
+        model: &WorldModel,
+        zones: &'z RwLock<Vec<String>>,
+        envs: Vec<E>,
+        opts: &MetaTrainOptions,
+        low_level: Vec<String>,
+    ) -> Result<Self> {
+        let Some(stem) = &opts.resume else {
+            return Self::fresh(Ppo::new(opts.ppo.clone(), envs), model, zones, opts, low_level);
+        };
+        let path = state_path(stem);
+        let invalid = |m: String| MetaError::Invalid(format!("{}: {m}", path.display()));
+        let text = std::fs::read_to_string(&path).map_err(|e| {
+            invalid(format!("{e} (a checkpoint of `meta train` has one beside `{}.ron`)", stem.display()))
+        })?;
+        let mut state: RunState =
+            ron::from_str(&text).map_err(|e| invalid(format!("line {}: {}", e.span.start.line, e.code)))?;
+        if state.low_level != low_level {
+            return Err(invalid(format!(
+                "trained over {:?}; this setup has {:?} (a checkpoint continues only over the low level it \
+                 was trained over)",
+                state.low_level, low_level
+            )));
+        }
+        let spec = model.scenario.scenario.curriculum.as_ref();
+        let wanted = opts.curriculum && spec.is_some();
+        match (&state.curriculum, spec) {
+            (saved, _) if saved.is_some() != wanted => {
+                return Err(invalid(format!(
+                    "trained {} the zone curriculum; continue it {}",
+                    if saved.is_some() { "with" } else { "without" },
+                    if saved.is_some() { "without --no-curriculum" } else { "with --no-curriculum" }
+                )));
+            }
+            (Some(c), Some(spec)) => {
+                if let Some(d) = c.differs_from(spec) {
+                    return Err(invalid(format!("the scenario's curriculum changed since: {d}")));
+                }
+            }
+            _ => {}
+        }
+        let mut ppo = checkpoint::load(stem, envs).map_err(|e| MetaError::Invalid(e.to_string()))?;
+        let mut wanted_cfg = opts.ppo.clone();
+        (wanted_cfg.num_iterations, wanted_cfg.ent_coef) = (ppo.cfg.num_iterations, ppo.cfg.ent_coef);
+        if let Some((saved, now)) = first_difference(&ppo.cfg, &wanted_cfg) {
+            return Err(invalid(format!("trained with `{saved}`, asked for `{now}`")));
+        }
+        if ppo.iteration > opts.ppo.num_iterations {
+            return Err(invalid(format!(
+                "already {} iterations in; ask for at least that many (--iterations)",
+                ppo.iteration
+            )));
+        }
+        (ppo.cfg.num_iterations, ppo.cfg.ent_coef) = (opts.ppo.num_iterations, opts.ppo.ent_coef);
+        let schedule = Schedule::resume(zones, state.curriculum.take(), opts, ppo.iteration)?;
+        state.resumed.push(Resume { iteration: ppo.iteration, command: opts.command.clone() });
+        tracing::info!(checkpoint = %stem.display(), iteration = ppo.iteration, to = opts.ppo.num_iterations, "resuming");
+        Ok(Session { ppo, schedule, state, started: Instant::now() })
+    }
+
+    /// A fresh run of `ppo` (built by the caller, e.g. fitted to demonstrations first).
+    pub(crate) fn fresh(
+        ppo: Ppo<E>,
+        model: &WorldModel,
+        zones: &'z RwLock<Vec<String>>,
+        opts: &MetaTrainOptions,
+        low_level: Vec<String>,
+    ) -> Result<Self> {
+        let schedule = Schedule::start(model, zones, opts)?;
+        let state =
+            RunState { low_level, curriculum: None, seconds: 0.0, command: opts.command.clone(), resumed: Vec::new() };
+        Ok(Session { ppo, schedule, state, started: Instant::now() })
+    }
+
+    /// Trains to the learner's iteration count with the zone curriculum, logging every
+    /// iteration to the run directory (`opts.run_dir`), showing progress, and writing a
+    /// checkpoint every `opts.checkpoint_every` iterations and after the last; returns each
+    /// iteration's metrics. `low_level` names the controller in the logs (`skills`, `latent`).
+    pub(crate) fn run(&mut self, opts: &MetaTrainOptions, low_level: &str) -> Result<Vec<IterationMetrics>> {
+        let io = |e| MetaError::Invalid(format!("{}: {e}", opts.run_dir.display()));
+        let mut run = match opts.resume {
+            Some(_) => RunDir::resume(&opts.run_dir, &self.ppo.cfg, self.ppo.iteration),
+            None => RunDir::create(&opts.run_dir, &self.ppo.cfg),
+        }
+        .map_err(io)?;
+        let total = self.ppo.cfg.num_iterations;
+        let bar = ProgressBar::new(total as u64).with_position(self.ppo.iteration as u64);
+        bar.set_style(
+            ProgressStyle::with_template("{prefix} [{bar:30}] {pos}/{len} it, {elapsed} < {eta} | {msg}")
+                .expect("a valid template")
+                .progress_chars("=> "),
+        );
+        bar.set_prefix(format!("meta train ({low_level})"));
+        let mut history = Vec::new();
+        while self.ppo.iteration < total {
+            let m = self.ppo.iterate();
+            run.log(&m).map_err(io)?;
+            self.schedule.after_iteration(m.iteration, &self.ppo.last_episodes)?;
+            let success = m.terms.first().map_or(f32::NAN, |t| t.1);
+            bar.suspend(|| {
+                tracing::info!(
+                    low_level,
+                    iteration = m.iteration,
+                    mean_return = m.mean_return,
+                    success,
+                    zone = self.schedule.zone(),
+                    "meta iteration"
+                )
+            });
+            bar.set_message(format!(
+                "return {:.2}, success {:.1}%, zone {}",
+                m.mean_return,
+                100.0 * success,
+                self.schedule.zone()
+            ));
+            bar.inc(1);
+            if opts.checkpoint_every > 0 && m.iteration.is_multiple_of(opts.checkpoint_every) && m.iteration < total {
+                self.checkpoint(&run)?;
+            }
+            history.push(m);
+        }
+        bar.finish_and_clear();
+        self.checkpoint(&run)?;
+        Ok(history)
+    }
+
+    /// Saves the learner at its iteration in `run`'s checkpoints, with the [`RunState`].
+    fn checkpoint(&mut self, run: &RunDir) -> Result<()> {
+        let stem = run.checkpoint_stem(self.ppo.iteration);
+        checkpoint::save(&mut self.ppo, &stem).map_err(|e| MetaError::Invalid(e.to_string()))?;
+        let state = RunState {
+            curriculum: self.schedule.curriculum.clone(),
+            seconds: self.state.seconds + self.started.elapsed().as_secs_f64(),
+            ..self.state.clone()
+        };
+        let text = ron::ser::to_string_pretty(&state, ron::ser::PrettyConfig::new().depth_limit(2))
+            .map_err(|e| MetaError::Invalid(e.to_string()))?;
+        repertoire_skill::library::write_atomic(&state_path(&stem), text.as_bytes())?;
+        Ok(())
+    }
+
+    /// The trained learner and what its controller's manifest records of the run.
+    pub(crate) fn finish(self) -> (Ppo<E>, TrainedRun) {
+        let run = TrainedRun {
+            samples: self.ppo.global_step,
+            seconds: self.state.seconds + self.started.elapsed().as_secs_f64(),
+            curriculum: self.schedule.is_on(),
+            advances: self.schedule.into_history(),
+            command: self.state.command,
+            resumed: self.state.resumed,
+        };
+        (self.ppo, run)
+    }
+}
+
+/// The first line in which two PPO settings differ, as RON (`None`: equal).
+fn first_difference(saved: &PpoConfig, now: &PpoConfig) -> Option<(String, String)> {
+    let ron = |c: &PpoConfig| ron::ser::to_string_pretty(c, ron::ser::PrettyConfig::default()).unwrap_or_default();
+    let (a, b) = (ron(saved), ron(now));
+    let trim = |l: &str| l.trim().trim_end_matches(',').to_string();
+    a.lines().zip(b.lines()).find(|(x, y)| x != y).map(|(x, y)| (trim(x), trim(y)))
+}
+
+/// The columns of a run's `curriculum.csv`.
+const CURRICULUM_HEADER: &str = "iteration,episodes,zone,zone_index,success_window,advance_at";
 
 /// The zone curriculum during a training run, shared by the skills' and the latent high level's
 /// trainers: it opens zones in `zones` (read by every environment at reset), records each
@@ -201,7 +425,32 @@ impl<'a> Schedule<'a> {
             let fail = |e: std::io::Error| MetaError::Invalid(format!("{}: {e}", path.display()));
             std::fs::create_dir_all(&opts.run_dir).map_err(fail)?;
             let mut f = std::fs::File::create(&path).map_err(fail)?;
-            writeln!(f, "iteration,episodes,zone,zone_index,success_window,advance_at").map_err(fail)?;
+            writeln!(f, "{CURRICULUM_HEADER}").map_err(fail)?;
+            file = Some((f, path));
+        }
+        Ok(Schedule { curriculum, zones, file })
+    }
+
+    /// Continues `curriculum` (a checkpoint's, `None`: every zone open) at `iteration`: opens
+    /// its zones and appends to the run's `curriculum.csv`, less any rows logged after
+    /// `iteration`.
+    pub(crate) fn resume(
+        zones: &'a RwLock<Vec<String>>,
+        curriculum: Option<ZoneCurriculum>,
+        opts: &MetaTrainOptions,
+        iteration: usize,
+    ) -> Result<Self> {
+        let mut file = None;
+        if let Some(c) = &curriculum {
+            *zones.write().expect("never poisoned") = c.open_zones().to_vec();
+            let path = opts.run_dir.join("curriculum.csv");
+            let fail = |e: std::io::Error| MetaError::Invalid(format!("{}: {e}", path.display()));
+            std::fs::create_dir_all(&opts.run_dir).map_err(fail)?;
+            drop_rows_after(&path, iteration).map_err(fail)?;
+            let mut f = std::fs::OpenOptions::new().create(true).append(true).open(&path).map_err(fail)?;
+            if f.metadata().map_err(fail)?.len() == 0 {
+                writeln!(f, "{CURRICULUM_HEADER}").map_err(fail)?;
+            }
             file = Some((f, path));
         }
         Ok(Schedule { curriculum, zones, file })

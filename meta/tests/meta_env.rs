@@ -9,7 +9,7 @@ use rand::SeedableRng;
 use repertoire_learn::env::{Env, EnvRng};
 use repertoire_learn::ppo::PpoConfig;
 use repertoire_meta::eval::evaluate;
-use repertoire_meta::train::{MetaTrainOptions, load, train};
+use repertoire_meta::train::{MetaTrainOptions, Resume, load, train};
 use repertoire_meta::{MetaEnv, MetaSetup, SkillGraph};
 use repertoire_scenes::{ScenarioFile, WorldModel};
 use repertoire_skill::train::TrainOptions;
@@ -193,6 +193,8 @@ fn training_writes_a_controller_and_evaluation_is_reproducible() {
         },
         curriculum: true,
         command: "test".into(),
+        resume: None,
+        checkpoint_every: 0,
     };
     let (manifest, history) = train(Arc::clone(&s), &opts).expect("train");
     assert_eq!(history.len(), 2);
@@ -245,7 +247,8 @@ fn training_writes_a_controller_and_evaluation_is_reproducible() {
 #[test]
 fn the_planners_copy_of_an_episode_plays_out_exactly_as_the_episode() {
     // The planner's premise: a plan simulated in its copy (snapshot, restore, step) ends where
-    // the episode itself ends given the same decisions, bit for bit.
+    // the episode itself ends given the same decisions, bit for bit, also from mid-episode,
+    // where MuJoCo's derived quantities belong to the state before the last substep.
     use repertoire_meta::planner::{Planner, PlannerConfig, write_action};
     let s = setup(None);
     let mut planner = Planner::new(Arc::clone(&s), PlannerConfig::default());
@@ -256,9 +259,13 @@ fn the_planners_copy_of_an_episode_plays_out_exactly_as_the_episode() {
         let mut env = MetaEnv::new(Arc::clone(&s));
         let mut obs = vec![0.0; env.obs_dim()];
         env.reset(&mut EnvRng::seed_from_u64(seed), &mut obs);
+        let mut act = vec![0.0; env.act_dim()];
+        if seed % 2 == 1 {
+            write_action(&s, (0, 2), &mut act);
+            env.step(&act, &mut obs);
+        }
         let predicted = planner.simulate(&env, &plan);
         assert!(predicted.played >= 1);
-        let mut act = vec![0.0; env.act_dim()];
         let mut ended = false;
         for &o in &plan[..predicted.played] {
             write_action(&s, o, &mut act);
@@ -666,4 +673,107 @@ fn a_guarded_sit_is_offered_only_near_the_chair_and_may_always_continue() {
     env.world_mut().place_standing(pl.pos[0] + 2.0 * c, pl.pos[1] + 2.0 * sn, pl.yaw);
     env.option_mask(&mut mask);
     assert!(mask[sit], "a chosen sit may continue anywhere");
+}
+
+/// Options of a tiny training run into `dir/<name>`, checkpointing every 2 iterations.
+fn tiny_run(dir: &Path, name: &str, iterations: usize, resume: Option<PathBuf>) -> MetaTrainOptions {
+    MetaTrainOptions {
+        out: dir.join(name).join("meta"),
+        run_dir: dir.join(name).join("run"),
+        ppo: PpoConfig {
+            num_envs: 2,
+            num_steps: 8,
+            num_iterations: iterations,
+            num_minibatches: 2,
+            update_epochs: 1,
+            ..PpoConfig::default()
+        },
+        curriculum: true,
+        command: name.into(),
+        resume,
+        checkpoint_every: 2,
+    }
+}
+
+/// `path`'s rows without the columns that time the run.
+fn untimed_rows(path: &Path) -> Vec<String> {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let header: Vec<&str> = text.lines().next().unwrap_or_default().split(',').collect();
+    let timed = |c: &str| c == "samples_per_sec" || c == "env_time_fraction";
+    text.lines()
+        .map(|l| l.split(',').zip(&header).filter(|(_, c)| !timed(c)).map(|(v, _)| v).collect::<Vec<_>>().join(","))
+        .collect()
+}
+
+#[test]
+fn a_run_resumed_from_its_checkpoint_ends_where_the_uninterrupted_run_ends() {
+    // The curriculum moves on after every episode, so the resumed run must pick up its zone, window
+    // and episode count to switch where the uninterrupted one does.
+    let text = include_str!("../../scenes/sit.ron").replace("max_episodes: Some(10000)", "max_episodes: Some(1)");
+    assert!(text.contains("Some(1)"), "the scenario's curriculum budget moved");
+    let file = ScenarioFile::parse(Path::new("sit-fast-curriculum.ron"), text).expect("scenario");
+    let model = Arc::new(WorldModel::build(file).expect("scene"));
+    let graph = SkillGraph::chain(&["walk_to", "turn_left", "sit"]);
+    let s = Arc::new(MetaSetup::new(model, library(), graph).expect("meta setup"));
+    let dir = std::env::temp_dir().join(format!("repertoire-meta-resume-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+
+    let (straight, _) = train(Arc::clone(&s), &tiny_run(&dir, "straight", 6, None)).expect("train");
+    assert!(!straight.advances.is_empty(), "the curriculum moves on inside the run");
+    let ckpt = |name: &str, it: usize| dir.join(name).join(format!("run/checkpoints/iter-{it:06}"));
+    for it in [2, 4, 6] {
+        assert!(ckpt("straight", it).with_extension("run.ron").exists(), "checkpoint {it} and its run state");
+    }
+
+    // A run that logged past its last checkpoint before it stopped: the straight run's folder,
+    // continued from iteration 2.
+    std::fs::create_dir_all(dir.join("resumed")).unwrap();
+    std::fs::create_dir_all(dir.join("resumed/run/checkpoints")).unwrap();
+    for entry in std::fs::read_dir(dir.join("straight/run")).unwrap() {
+        let p = entry.unwrap().path();
+        if p.is_file() {
+            std::fs::copy(&p, dir.join("resumed/run").join(p.file_name().unwrap())).unwrap();
+        }
+    }
+    for ext in ["ron", "safetensors", "run.ron"] {
+        let from = ckpt("straight", 2).with_extension(ext);
+        std::fs::copy(&from, ckpt("resumed", 2).with_extension(ext)).unwrap();
+    }
+    let (resumed, history) =
+        train(Arc::clone(&s), &tiny_run(&dir, "resumed", 6, Some(ckpt("resumed", 2)))).expect("resume");
+    assert_eq!(history.len(), 4, "iterations 3 to 6");
+    let bytes = |name: &str| std::fs::read(dir.join(name).join("meta/meta.safetensors")).unwrap();
+    assert!(bytes("resumed") == bytes("straight"), "the same weights, bit for bit");
+    assert_eq!(resumed.advances, straight.advances);
+    assert_eq!((resumed.samples, resumed.iterations), (straight.samples, straight.iterations));
+    assert_eq!(resumed.command, "straight", "the command that started the run");
+    assert_eq!(resumed.resumed, [Resume { iteration: 2, command: "resumed".into() }]);
+    assert!(straight.resumed.is_empty());
+    for log in ["metrics.csv", "curriculum.csv"] {
+        let rows = untimed_rows(&dir.join("resumed/run").join(log));
+        assert_eq!(rows, untimed_rows(&dir.join("straight/run").join(log)), "{log}: no repeated or missing rows");
+        assert_eq!(rows.len(), 7, "{log}: a header and 6 iterations");
+    }
+
+    // What cannot continue is refused, naming the checkpoint's run state.
+    let refused =
+        |opts: MetaTrainOptions, s: &Arc<MetaSetup>| train(Arc::clone(s), &opts).expect_err("refused").to_string();
+    let from = || Some(ckpt("straight", 4));
+    let err = refused(MetaTrainOptions { curriculum: false, ..tiny_run(&dir, "x", 6, from()) }, &s);
+    assert!(err.contains("iter-000004.run.ron") && err.contains("without --no-curriculum"), "{err}");
+    let mut reseeded = tiny_run(&dir, "x", 6, from());
+    reseeded.ppo.seed = 2;
+    let err = refused(reseeded, &s);
+    assert!(err.contains("seed: 1") && err.contains("seed: 2"), "{err}");
+    let err = refused(tiny_run(&dir, "x", 3, from()), &s);
+    assert!(err.contains("already 4 iterations in"), "{err}");
+    let other = setup(Some(SkillGraph::chain(&["walk_to", "turn_right", "sit"])));
+    let err = refused(tiny_run(&dir, "x", 6, from()), &other);
+    assert!(err.contains("trained over") && err.contains("turn_left"), "{err}");
+    let err = refused(tiny_run(&dir, "x", 6, Some(dir.join("straight/run/checkpoints/iter-000003"))), &s);
+    assert!(err.contains("iter-000003.run.ron"), "{err}");
+    // More iterations than the run had: it goes on, annealing to the new total.
+    let (longer, _) = train(Arc::clone(&s), &tiny_run(&dir, "longer", 8, from())).expect("extend");
+    assert_eq!((longer.iterations, longer.ppo.num_iterations), (8, 8));
+    std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -45,6 +45,8 @@ fn tiny_controller(setup: &Arc<MetaSetup>, tag: &str) -> (PathBuf, repertoire_le
         },
         curriculum: false,
         command: "test".into(),
+        resume: None,
+        checkpoint_every: 0,
     };
     let (manifest, _) = train(Arc::clone(setup), &opts).expect("train");
     assert_eq!(manifest.skills, ["walk", "turn_left", "turn_right"]);

@@ -207,7 +207,22 @@ pub struct World {
     data: MjData<Arc<MjModel>>,
     placements: Vec<PropPlacement>,
     owns_model: bool,
+    /// Whether the last change was a physics step rather than a state set by hand: MuJoCo's
+    /// derived quantities (body poses, sensors, contacts) then belong to the state before the
+    /// last substep, not to the present one.
+    stepped: bool,
+    /// The integration state ([`BEFORE_LAST`]) before the last substep of the last step, so a
+    /// snapshot can be restored with the same derived quantities (see [`World::restore`]).
+    before_last: Vec<f64>,
 }
+
+/// What of MuJoCo's state [`World`] keeps from before a step's last substep: time, qpos, qvel,
+/// activations and the solver's warm start (ctrl and mocap poses do not change within a step).
+const BEFORE_LAST: u32 = MjtState::mjSTATE_TIME as u32
+    | MjtState::mjSTATE_QPOS as u32
+    | MjtState::mjSTATE_QVEL as u32
+    | MjtState::mjSTATE_ACT as u32
+    | MjtState::mjSTATE_WARMSTART as u32;
 
 impl World {
     /// A world of `shared`'s scene, standing at the origin with nominal props.
@@ -231,8 +246,9 @@ impl World {
                 }
             })
             .collect();
-        let mut world = Self { shared, data, placements, owns_model: false };
-        world.data.forward();
+        let before_last = vec![0.0; shared.model.state_size(BEFORE_LAST)];
+        let mut world = Self { shared, data, placements, owns_model: false, stepped: false, before_last };
+        world.forward();
         world
     }
 
@@ -305,7 +321,7 @@ impl World {
                 }
             }
         }
-        self.data.forward();
+        self.forward();
     }
 
     fn draw_placement(
@@ -418,7 +434,7 @@ impl World {
                 self.data.qvel_mut()[dof..dof + 6].fill(0.0);
             }
         }
-        self.data.forward();
+        self.forward();
         Ok(())
     }
 
@@ -465,7 +481,7 @@ impl World {
         qv[dof + 3..dof + 6].copy_from_slice(&local);
         let placement = &mut self.placements[p];
         placement.pos = pos;
-        self.data.forward();
+        self.forward();
         Ok(())
     }
 
@@ -502,7 +518,7 @@ impl World {
             self.data.qvel_mut()[j.dof] = 0.0;
         }
         self.hold_pose();
-        self.data.forward();
+        self.forward();
     }
 
     /// Sets the character's pose: root position, root orientation (w x y z) and the actuated
@@ -549,7 +565,7 @@ impl World {
             qv[j.dof] = joint_vel.map_or(0.0, |v| v[k]);
         }
         self.hold_pose();
-        self.data.forward();
+        self.forward();
         Ok(())
     }
 
@@ -570,7 +586,7 @@ impl World {
         self.data.qpos_mut().copy_from_slice(qpos);
         self.data.qvel_mut().copy_from_slice(qvel);
         self.hold_pose();
-        self.data.forward();
+        self.forward();
         Ok(())
     }
 
@@ -583,11 +599,15 @@ impl World {
             + d.ctrl().len()
             + 7 * d.mocap_pos().len()
             + PLACEMENT_LEN * self.placements.len()
+            + 1
+            + self.before_last.len()
     }
 
     /// Everything that decides this world's future, as numbers: time, qpos, qvel, activations,
     /// PD targets, the solver's warm start, mocap poses and the props' placements (with free
-    /// props' drawn sizes and masses). [`World::restore`] of it makes the next steps identical.
+    /// props' drawn sizes and masses), then whether the world was last stepped and, if so, its
+    /// integration state before the last substep. [`World::restore`] of it makes what the world
+    /// reports and its next steps identical, bit for bit.
     pub fn snapshot(&self, out: &mut Vec<f64>) {
         let d = &self.data;
         out.clear();
@@ -602,6 +622,12 @@ impl World {
         for p in &self.placements {
             out.extend_from_slice(&p.pos);
             out.extend_from_slice(&[p.yaw, p.top, p.scale, p.mass]);
+        }
+        out.push(f64::from(u8::from(self.stepped)));
+        if self.stepped {
+            out.extend_from_slice(&self.before_last);
+        } else {
+            out.extend(std::iter::repeat_n(0.0, self.before_last.len()));
         }
     }
 
@@ -657,8 +683,21 @@ impl World {
         if !rescale.is_empty() {
             self.rescale_free_props(&rescale);
         }
-        self.data.forward();
-        self.data.qacc_warmstart_mut().copy_from_slice(warm);
+        let stepped = take(1)[0] != 0.0;
+        let before_last = take(self.before_last.len());
+        if stepped {
+            // The last substep again, from where it started: MuJoCo's derived quantities then
+            // belong to that state, as they did in the world the snapshot was taken of (a
+            // forward pass would compute them for the present state, and every later step
+            // would drift from the original's).
+            self.data.set_state(before_last, BEFORE_LAST).map_err(|e| SceneError::Usage(format!("restore: {e}")))?;
+            self.data.step();
+            self.before_last.copy_from_slice(before_last);
+            self.stepped = true;
+        } else {
+            self.forward();
+            self.data.qacc_warmstart_mut().copy_from_slice(warm);
+        }
         Ok(())
     }
 
@@ -690,10 +729,21 @@ impl World {
         for (j, &a) in joints.iter().zip(action) {
             ctrl[j.actuator] = a.clamp(j.ctrl_range[0], j.ctrl_range[1]);
         }
-        for _ in 0..self.shared.substeps {
+        for i in 0..self.shared.substeps {
+            if i + 1 == self.shared.substeps {
+                self.data.read_state_into(BEFORE_LAST, &mut self.before_last);
+            }
             self.data.step();
         }
+        self.stepped = self.shared.substeps > 0;
         Ok(())
+    }
+
+    /// Recomputes MuJoCo's derived quantities for the present state (after a state was set by
+    /// hand).
+    fn forward(&mut self) {
+        self.data.forward();
+        self.stepped = false;
     }
 
     /// Actuated joint angles in map order.
@@ -874,7 +924,7 @@ impl World {
     pub fn lift_character(&mut self, dz: f64) {
         let r = self.shared.index.root_qpos;
         self.data.qpos_mut()[r + 2] += dz;
-        self.data.forward();
+        self.forward();
     }
 
     /// True when a body part other than those allowed (the feet) touches the floor.

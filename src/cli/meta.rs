@@ -13,7 +13,7 @@ use repertoire_meta::eval::{Controller, evaluate, save_worst};
 use repertoire_meta::latent::{self, LatentSetup};
 use repertoire_meta::planner::PlannerConfig;
 use repertoire_meta::task_eval::{StartGrid, evaluate_toss, evaluate_warehouse, save_worst_toss, save_worst_warehouse};
-use repertoire_meta::train::{MetaTrainOptions, default_ppo, load, train};
+use repertoire_meta::train::{CHECKPOINT_EVERY, MetaTrainOptions, default_ppo, load, train};
 use repertoire_meta::{Advance, MetaSetup, SkillGraph, TaskSpec};
 use repertoire_scenes::WorldModel;
 
@@ -60,6 +60,41 @@ impl PlannerArgs {
     }
 }
 
+/// `meta train`'s options for the run itself, for either low level: PPO settings, where the
+/// run goes, and whether it continues a checkpoint.
+#[derive(Debug, clap::Args)]
+pub struct RunArgs {
+    /// Run directory (default: runs/meta-<time>-s<seed>; resuming: the checkpoint's run).
+    #[arg(long)]
+    run_dir: Option<PathBuf>,
+    /// PPO iterations in all [default: 200; resuming: the checkpoint's total]. Resuming with
+    /// more extends the run: learning-rate annealing then runs to the new total.
+    #[arg(long, value_parser = crate::cli::at_least_one)]
+    iterations: Option<usize>,
+    /// Parallel environments [default: 16; resuming: the checkpoint's].
+    #[arg(long)]
+    envs: Option<usize>,
+    /// Seed [default: 1; resuming: the checkpoint's].
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Entropy bonus of the PPO loss (skill choice and targets together; default 0 over the
+    /// skills, the latent low level's own otherwise, the checkpoint's when resuming).
+    /// Without one the controller settles on one sequence as soon as it finds one that pays.
+    #[arg(long, value_parser = crate::cli::non_negative)]
+    ent_coef: Option<f32>,
+    /// Continue a run from its checkpoint (a stem: RUN/checkpoints/iter-000600): learner,
+    /// optimiser, environments and curriculum as they were; refused over other skills, another
+    /// curriculum or other PPO settings.
+    #[arg(long)]
+    resume: Option<PathBuf>,
+    /// Write a checkpoint every N iterations into the run directory (0: only after the last).
+    #[arg(long, default_value_t = CHECKPOINT_EVERY)]
+    checkpoint_every: usize,
+    /// Open every zone from the start (the "no curriculum" ablation).
+    #[arg(long)]
+    no_curriculum: bool,
+}
+
 #[derive(Debug, Subcommand)]
 pub enum MetaCommand {
     /// Train the meta-controller (hybrid PPO at the meta rate, zone curriculum).
@@ -73,26 +108,8 @@ pub enum MetaCommand {
         /// LIBRARY/meta-<scenario name> otherwise; LIBRARY is --library).
         #[arg(long)]
         out: Option<PathBuf>,
-        /// Run directory (default: runs/meta-<time>).
-        #[arg(long)]
-        run_dir: Option<PathBuf>,
-        /// PPO iterations.
-        #[arg(long, default_value_t = 200, value_parser = crate::cli::at_least_one)]
-        iterations: usize,
-        /// Parallel environments.
-        #[arg(long, default_value_t = 16)]
-        envs: usize,
-        /// Seed.
-        #[arg(long, default_value_t = 1)]
-        seed: u64,
-        /// Entropy bonus of the PPO loss (skill choice and targets together; default 0 over the
-        /// skills, the latent low level's own otherwise). Without one the controller settles on
-        /// one sequence as soon as it finds one that pays.
-        #[arg(long, value_parser = crate::cli::non_negative)]
-        ent_coef: Option<f32>,
-        /// Open every zone from the start (the "no curriculum" ablation).
-        #[arg(long)]
-        no_curriculum: bool,
+        #[command(flatten)]
+        run: RunArgs,
         /// Replace the scenario's skill graph by this fixed-order chain (e.g. walk,turn_left,sit).
         #[arg(long, value_delimiter = ',')]
         chain: Vec<String>,
@@ -277,56 +294,16 @@ pub fn setup(file: Option<&PathBuf>, library: &Path, chain: &[String], skills: &
 pub fn run(cmd: MetaCommand) -> Result<()> {
     let command = super::invocation();
     match cmd {
-        MetaCommand::Train {
-            file,
-            library,
-            out,
-            run_dir,
-            iterations,
-            envs,
-            seed,
-            ent_coef,
-            no_curriculum,
-            chain,
-            skills,
-            latent,
-            hold,
-        } => {
+        MetaCommand::Train { file, library, out, run, chain, skills, latent, hold } => {
+            let run = TrainRun { args: run, command };
             if let Some((model, dir)) = latent_low_level(file.as_ref(), latent)? {
                 no_skill_options(&chain, &skills)?;
-                let args = LatentTrain {
-                    library,
-                    out,
-                    run_dir,
-                    iterations,
-                    envs,
-                    seed,
-                    ent_coef,
-                    no_curriculum,
-                    hold,
-                    command,
-                };
-                return train_latent(model, &dir, args);
+                return train_latent(model, &dir, &library, out, hold, run);
             }
             let setup = setup(file.as_ref(), &library, &chain, &skills)?;
             let out = out.unwrap_or_else(|| setup_meta(&library, &setup));
-            let secs = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
-            let run_dir = run_dir.unwrap_or_else(|| PathBuf::from(format!("runs/meta-{secs}-s{seed}")));
-            let base = default_ppo();
-            let ppo = repertoire_learn::ppo::PpoConfig {
-                num_envs: envs,
-                num_iterations: iterations,
-                seed,
-                ent_coef: ent_coef.unwrap_or(base.ent_coef),
-                ..base
-            };
-            let opts = MetaTrainOptions {
-                out: out.clone(),
-                run_dir: run_dir.clone(),
-                ppo,
-                curriculum: !no_curriculum,
-                command,
-            };
+            let opts = run.options(default_ppo(), out.clone(), "meta")?;
+            let run_dir = opts.run_dir.clone();
             let (manifest, history) = train(setup, &opts).context("training the meta-controller")?;
             print_training(
                 "decisions",
@@ -380,17 +357,22 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
                 batch,
                 ppo: repertoire_learn::ppo::PpoConfig { seed, ..default_ppo() },
                 seed,
-                then_train: (iterations > 0).then(|| {
-                    let secs =
-                        std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
-                    MetaTrainOptions {
-                        out: out.clone(),
-                        run_dir: run_dir.unwrap_or_else(|| PathBuf::from(format!("runs/meta-distill-{secs}-s{seed}"))),
-                        ppo: repertoire_learn::ppo::PpoConfig { num_iterations: iterations, seed, ..default_ppo() },
-                        curriculum: !no_curriculum,
-                        command: command.clone(),
-                    }
-                }),
+                then_train: (iterations > 0)
+                    .then(|| {
+                        let args = RunArgs {
+                            run_dir,
+                            iterations: Some(iterations),
+                            envs: None,
+                            seed: Some(seed),
+                            ent_coef: None,
+                            resume: None,
+                            checkpoint_every: CHECKPOINT_EVERY,
+                            no_curriculum,
+                        };
+                        let run = TrainRun { args, command: command.clone() };
+                        run.options(default_ppo(), out.clone(), "meta-distill")
+                    })
+                    .transpose()?,
                 command,
             };
             let (_, f) = distill(setup, &opts)?;
@@ -653,43 +635,70 @@ pub fn default_latent_meta(library: &Path, model: &WorldModel) -> PathBuf {
     library.join(format!("latent-meta-{}", model.scenario.scenario.name))
 }
 
-/// `meta train` through the latent low level.
-struct LatentTrain {
-    library: PathBuf,
-    out: Option<PathBuf>,
-    run_dir: Option<PathBuf>,
-    iterations: usize,
-    envs: usize,
-    seed: u64,
-    ent_coef: Option<f32>,
-    no_curriculum: bool,
-    hold: usize,
+/// A run `meta train` asks for ([`RunArgs`]) and the command line that asked.
+struct TrainRun {
+    args: RunArgs,
     command: String,
 }
 
-fn train_latent(model: Arc<WorldModel>, dir: &Path, a: LatentTrain) -> Result<()> {
+impl TrainRun {
+    /// The training options over `base` (the low level's PPO defaults) writing the controller
+    /// to `out`: a fresh run in `runs/<prefix>-<time>-s<seed>` unless `--run-dir` says
+    /// otherwise, or the checkpoint's settings and run directory when resuming.
+    fn options(self, base: repertoire_learn::ppo::PpoConfig, out: PathBuf, prefix: &str) -> Result<MetaTrainOptions> {
+        let TrainRun { args: a, command } = self;
+        let (ppo, run_dir) = match &a.resume {
+            Some(stem) => {
+                let ppo = repertoire_meta::train::resumed_ppo(stem, a.iterations, a.envs, a.seed, a.ent_coef)?;
+                let run_dir = match a.run_dir {
+                    Some(dir) => dir,
+                    None => repertoire_meta::train::run_of_checkpoint(stem).with_context(|| {
+                        format!("{} is not in a run's checkpoints folder: give --run-dir", stem.display())
+                    })?,
+                };
+                (ppo, run_dir)
+            }
+            None => {
+                let ppo = repertoire_learn::ppo::PpoConfig {
+                    num_envs: a.envs.unwrap_or(16),
+                    num_iterations: a.iterations.unwrap_or(200),
+                    seed: a.seed.unwrap_or(1),
+                    ent_coef: a.ent_coef.unwrap_or(base.ent_coef),
+                    ..base
+                };
+                let secs =
+                    std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
+                let run_dir = a.run_dir.unwrap_or_else(|| PathBuf::from(format!("runs/{prefix}-{secs}-s{}", ppo.seed)));
+                (ppo, run_dir)
+            }
+        };
+        Ok(MetaTrainOptions {
+            out,
+            run_dir,
+            ppo,
+            curriculum: !a.no_curriculum,
+            command,
+            resume: a.resume,
+            checkpoint_every: a.checkpoint_every,
+        })
+    }
+}
+
+fn train_latent(
+    model: Arc<WorldModel>,
+    dir: &Path,
+    library: &Path,
+    out: Option<PathBuf>,
+    hold: usize,
+    run: TrainRun,
+) -> Result<()> {
     let setup = Arc::new(
-        LatentSetup::new(model, dir, &a.library, a.hold)
+        LatentSetup::new(model, dir, library, hold)
             .with_context(|| format!("preparing the latent low level {}", dir.display()))?,
     );
-    let out = a.out.unwrap_or_else(|| default_latent_meta(&a.library, &setup.model));
-    let secs = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
-    let run_dir = a.run_dir.unwrap_or_else(|| PathBuf::from(format!("runs/latent-meta-{secs}-s{}", a.seed)));
-    let base = latent::default_ppo(&setup);
-    let ppo = repertoire_learn::ppo::PpoConfig {
-        num_envs: a.envs,
-        num_iterations: a.iterations,
-        seed: a.seed,
-        ent_coef: a.ent_coef.unwrap_or(base.ent_coef),
-        ..base
-    };
-    let opts = MetaTrainOptions {
-        out: out.clone(),
-        run_dir: run_dir.clone(),
-        ppo,
-        curriculum: !a.no_curriculum,
-        command: a.command,
-    };
+    let out = out.unwrap_or_else(|| default_latent_meta(library, &setup.model));
+    let opts = run.options(latent::default_ppo(&setup), out.clone(), "latent-meta")?;
+    let run_dir = opts.run_dir.clone();
     let (manifest, history) = latent::train(setup, &opts).context("training the latent high level")?;
     print_training(
         "high-level steps",

@@ -56,6 +56,16 @@ impl RunDir {
         Ok(RunDir { path: path.to_path_buf(), jsonl: open("metrics.jsonl")?, csv, wrote_header })
     }
 
+    /// Reopen `path` to continue a run from its checkpoint at `iteration`: rows of
+    /// `metrics.csv` and `metrics.jsonl` logged after that iteration (by a run that went on past
+    /// the checkpoint before it stopped) are dropped, so the continued run's rows follow on
+    /// without repeats; then as [`RunDir::create`].
+    pub fn resume(path: &Path, config: &PpoConfig, iteration: usize) -> std::io::Result<Self> {
+        drop_rows_after(&path.join("metrics.csv"), iteration)?;
+        drop_rows_after(&path.join("metrics.jsonl"), iteration)?;
+        Self::create(path, config)
+    }
+
     /// The directory.
     pub fn path(&self) -> &Path {
         &self.path
@@ -105,6 +115,36 @@ impl RunDir {
     }
 }
 
+/// Drops the rows of a per-iteration log logged after `iteration`: a CSV whose first column is
+/// the iteration (the header and other rows without one stay), or JSON lines with an
+/// `iteration` field (`.jsonl`). The file is rewritten through a temporary sibling; a missing
+/// file is left missing.
+pub fn drop_rows_after(path: &Path, iteration: usize) -> std::io::Result<()> {
+    let text = match std::fs::read_to_string(path) {
+        Ok(t) => t,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(e) => return Err(e),
+    };
+    let jsonl = path.extension().is_some_and(|e| e == "jsonl");
+    let row_iteration = |line: &str| -> Option<u64> {
+        if jsonl {
+            serde_json::from_str::<serde_json::Value>(line).ok()?.get("iteration")?.as_u64()
+        } else {
+            line.split(',').next()?.trim().parse().ok()
+        }
+    };
+    let kept: String = text
+        .lines()
+        .filter(|l| row_iteration(l).is_none_or(|i| i <= iteration as u64))
+        .flat_map(|l| [l, "\n"])
+        .collect();
+    if kept.len() == text.len() {
+        return Ok(());
+    }
+    repertoire_files::write_atomic(path, kept.as_bytes())
+        .map_err(|e| std::io::Error::new(e.source.kind(), e.to_string()))
+}
+
 /// The fixed CSV columns, in order (named reward terms follow as `term_<name>`).
 pub const CSV_COLUMNS: [&str; 17] = [
     "iteration",
@@ -125,3 +165,25 @@ pub const CSV_COLUMNS: [&str; 17] = [
     "samples_per_sec",
     "env_time_fraction",
 ];
+
+#[cfg(test)]
+mod tests {
+    use super::drop_rows_after;
+
+    #[test]
+    fn rows_logged_after_a_checkpoint_are_dropped_and_headers_stay() {
+        let dir = std::env::temp_dir().join(format!("repertoire-run-rows-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let csv = dir.join("metrics.csv");
+        std::fs::write(&csv, "iteration,global_step\n1,10\n2,20\n3,30\n").unwrap();
+        let jsonl = dir.join("metrics.jsonl");
+        std::fs::write(&jsonl, "{\"iteration\":1,\"x\":0.5}\n{\"iteration\":2}\n{\"iteration\":3}\n").unwrap();
+        drop_rows_after(&csv, 2).unwrap();
+        drop_rows_after(&jsonl, 1).unwrap();
+        assert_eq!(std::fs::read_to_string(&csv).unwrap(), "iteration,global_step\n1,10\n2,20\n");
+        assert_eq!(std::fs::read_to_string(&jsonl).unwrap(), "{\"iteration\":1,\"x\":0.5}\n");
+        drop_rows_after(&dir.join("absent.csv"), 0).unwrap();
+        assert!(!dir.join("absent.csv").exists(), "a missing log stays missing");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

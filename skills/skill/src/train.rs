@@ -226,8 +226,11 @@ pub fn train(setup: &SkillSetup, opts: &TrainOptions) -> Result<TrainOutcome> {
     let (mut ppo, lineage) = ppo_for(setup, opts)?;
     let total = ppo.cfg.num_iterations;
     let start_iter = ppo.iteration;
-    let mut run = RunDir::create(&opts.run_dir, &ppo.cfg)
-        .map_err(|e| SkillError::io(&opts.run_dir, "cannot create the run directory", e))?;
+    let run = match opts.resume {
+        Some(_) => RunDir::resume(&opts.run_dir, &ppo.cfg, start_iter),
+        None => RunDir::create(&opts.run_dir, &ppo.cfg),
+    };
+    let mut run = run.map_err(|e| SkillError::io(&opts.run_dir, "cannot create the run directory", e))?;
     let bar = if opts.progress {
         let bar = ProgressBar::new(total as u64);
         bar.set_style(

@@ -232,6 +232,24 @@ fn a_trained_skill_round_trips_through_the_library_and_refuses_another_body() {
 }
 
 #[test]
+fn a_training_run_resumed_from_its_checkpoint_ends_where_the_uninterrupted_run_ends() {
+    // The skill's starts and the physics are restored exactly, so the resumed run learns the
+    // same weights from the same samples.
+    let (straight, resumed) = (temp("straight"), temp("resumed"));
+    let s = setup("turn_left.ron", &straight);
+    let opts = TrainOptions { checkpoint_every: 2, ..TrainOptions::quick(&straight, &straight.join("run"), 4, 2, 5) };
+    train(&s, &opts).expect("train");
+    let stem = straight.join("run/checkpoints/iter-000002");
+    let again = TrainOptions { resume: Some(stem), ..TrainOptions::quick(&resumed, &resumed.join("run"), 4, 2, 5) };
+    let out = train(&setup("turn_left.ron", &resumed), &again).expect("resume");
+    assert_eq!(out.history.len(), 2, "iterations 3 and 4");
+    let policy = |lib: &Path| std::fs::read(lib.join("turn_left/policy.safetensors")).expect("policy");
+    assert!(policy(&resumed) == policy(&straight), "the resumed run's policy differs from the uninterrupted run's");
+    let rows = std::fs::read_to_string(resumed.join("run/metrics.csv")).unwrap();
+    assert_eq!(rows.lines().skip(1).map(|l| l.split(',').next().unwrap()).collect::<Vec<_>>(), ["3", "4"]);
+}
+
+#[test]
 fn a_skills_next_stage_continues_the_critic_saved_with_its_policy() {
     let lib = temp("critic");
     let s = setup("turn_left.ron", &lib);
