@@ -43,7 +43,8 @@ pub struct DistillOptions {
     /// The command line.
     pub command: String,
     /// PPO after the fit, from the fitted policy (its `ppo.num_iterations`, run directory and
-    /// curriculum); `None`: the fit alone.
+    /// curriculum); `None`: the fit alone. The fitted controller is then also kept, in
+    /// `out/fitted`, so the two can be compared.
     pub then_train: Option<MetaTrainOptions>,
 }
 
@@ -138,24 +139,24 @@ pub fn distill(setup: Arc<MetaSetup>, opts: &DistillOptions) -> Result<(MetaMani
     let mut ppo = Ppo::new(opts.ppo.clone(), envs);
     let losses = ppo.behaviour_clone(&obs, &actions, &masks, opts.epochs, opts.batch).map_err(MetaError::Invalid)?;
     let fitting_s = fit_started.elapsed().as_secs_f64();
+    let fitted = |samples: u64, seconds: f64| TrainedRun {
+        samples,
+        seconds,
+        curriculum: false,
+        advances: Vec::new(),
+        command: opts.command.clone(),
+        resumed: Vec::new(),
+    };
     let (ppo, mut run) = match &opts.then_train {
         Some(train) => {
+            let seconds = started.elapsed().as_secs_f64();
+            save_controller(&setup, &ppo, &opts.out.join("fitted"), fitted(demonstrations as u64, seconds))?;
             ppo.cfg.num_iterations = train.ppo.num_iterations;
             let mut session = Session::fresh(ppo, &setup.model, &setup.zones, train, setup.low_level())?;
             session.run(train, "skills, from the planner")?;
             session.finish()
         }
-        None => {
-            let run = TrainedRun {
-                samples: 0,
-                seconds: 0.0,
-                curriculum: false,
-                advances: Vec::new(),
-                command: opts.command.clone(),
-                resumed: Vec::new(),
-            };
-            (ppo, run)
-        }
+        None => (ppo, fitted(0, 0.0)),
     };
     run.samples += demonstrations as u64;
     run.seconds = started.elapsed().as_secs_f64();

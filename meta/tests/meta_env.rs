@@ -320,23 +320,34 @@ fn the_planner_distilled_is_a_controller_that_loads_and_evaluates() {
         ppo: PpoConfig { num_envs: 2, ..repertoire_meta::train::default_ppo() },
         seed: 4,
         command: "test".into(),
-        then_train: None,
+        then_train: Some(MetaTrainOptions {
+            out: out.clone(),
+            run_dir: out.join("run"),
+            ppo: PpoConfig { num_envs: 2, num_steps: 4, num_iterations: 1, ..repertoire_meta::train::default_ppo() },
+            curriculum: false,
+            command: "test".into(),
+            resume: None,
+            checkpoint_every: 0,
+        }),
     };
     let (manifest, f) = distill(Arc::clone(&s), &opts).expect("distil");
     assert_eq!(f.episodes, 2);
     assert!(f.demonstrations >= 2, "every episode makes at least one decision");
-    assert_eq!(manifest.samples, f.demonstrations as u64);
-    assert_eq!(manifest.iterations, 0, "the fit alone");
+    assert_eq!(manifest.iterations, 1, "the fit, then one PPO iteration");
     assert_eq!(f.losses.len(), 3);
     assert!(f.losses.iter().all(|l| l.is_finite() && *l >= 0.0), "{:?}", f.losses);
     let (loaded, head) = load(&out, &s).expect("the distilled controller loads");
     assert_eq!(loaded, manifest);
+    let (fitted, _) = load(&out.join("fitted"), &s).expect("the fit before PPO is kept and loads");
+    assert_eq!((fitted.iterations, fitted.samples), (0, f.demonstrations as u64), "the fit alone");
+    let weights = |dir: &Path| std::fs::read(dir.join("meta.safetensors")).unwrap();
+    assert!(weights(&out) != weights(&out.join("fitted")), "PPO moved the fitted controller");
     let report = evaluate(&s, &head, &["front".to_string()], 2, 2, 1).expect("evaluates");
     assert_eq!(report.trials.len(), 2);
     // Only successful episodes, when none succeeded, leave nothing to fit: a clear error.
     if f.successes == 0 {
-        let err =
-            distill(Arc::clone(&s), &DistillOptions { successful_only: true, ..opts }).expect_err("nothing to fit");
+        let only = DistillOptions { successful_only: true, then_train: None, ..opts };
+        let err = distill(Arc::clone(&s), &only).expect_err("nothing to fit");
         assert!(err.to_string().contains("no demonstrations"), "{err}");
     }
 }

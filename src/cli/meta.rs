@@ -375,6 +375,7 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
                     .transpose()?,
                 command,
             };
+            let trained = opts.then_train.is_some();
             let (_, f) = distill(setup, &opts)?;
             println!(
                 "| planner episodes | successful | decisions fitted | planning (min) | fitting (min) | NLL first → last epoch |"
@@ -395,6 +396,9 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
                 out.display(),
                 out.display()
             );
+            if trained {
+                println!("the fitted controller before PPO: {}", out.join("fitted").display());
+            }
             Ok(())
         }
         MetaCommand::Deliver {
