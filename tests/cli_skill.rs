@@ -133,6 +133,18 @@ fn meta_train_eval_and_the_main_job() {
     ]));
     assert!(text.contains("meta-controller written to"), "{text}");
     assert!(meta.join("meta.ron").exists() && meta.join("meta.safetensors").exists(), "{text}");
+    // The run goes on from its checkpoint, in its own run directory, to a larger total.
+    let stem = run.join("checkpoints/iter-000001");
+    let resumed = dir.join("meta-resumed");
+    let args = ["meta", "train", "--library", lib_s, "--out", resumed.to_str().unwrap(), "--iterations", "2"];
+    let text = ok(&repertoire(&[&args[..], &["--resume", stem.to_str().unwrap()]].concat()));
+    assert!(text.contains(&format!("run in {}", run.display())), "{text}");
+    let manifest = std::fs::read_to_string(resumed.join("meta.ron")).unwrap();
+    assert!(manifest.contains("iterations: 2,") && manifest.contains("resumed: [") && manifest.contains("--resume"));
+    assert_eq!(std::fs::read_to_string(run.join("metrics.csv")).unwrap().lines().count(), 3, "a header, 2 iterations");
+    let out = repertoire(&[&args[..], &["--resume", dir.join("no-such/iter-000001").to_str().unwrap()]].concat());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("no-such/iter-000001.ron"), "{err}");
     let text = ok(&repertoire(&["meta", "eval", "--library", lib_s, "--trials", "2", "--zones", "front"]));
     assert!(text.contains("| front | 2 |") && text.contains("| all | 2 |"), "{text}");
     assert!(meta.join("eval/report.md").exists() && meta.join("eval/trials.csv").exists());
