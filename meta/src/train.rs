@@ -180,11 +180,9 @@ struct RunState {
     resumed: Vec<Resume>,
 }
 
-/// `<stem>.run.ron`.
+/// `<stem>.run.ron`, beside the checkpoint's [`checkpoint::manifest_path`].
 fn state_path(stem: &Path) -> PathBuf {
-    let mut s = stem.as_os_str().to_owned();
-    s.push(".run.ron");
-    PathBuf::from(s)
+    stem.with_extension("run.ron")
 }
 
 /// The run directory a checkpoint stem lies in (`RUN` of `RUN/checkpoints/iter-000600`).
@@ -204,9 +202,9 @@ pub fn resumed_ppo(
     seed: Option<u64>,
     ent_coef: Option<f32>,
 ) -> Result<PpoConfig> {
-    let mut path = stem.as_os_str().to_owned();
-    path.push(".ron");
-    let saved = checkpoint::read_manifest(Path::new(&path)).map_err(|e| MetaError::Invalid(e.to_string()))?.config;
+    let saved = checkpoint::read_manifest(&checkpoint::manifest_path(stem))
+        .map_err(|e| MetaError::Invalid(e.to_string()))?
+        .config;
     Ok(PpoConfig {
         num_iterations: iterations.unwrap_or(saved.num_iterations),
         num_envs: envs.unwrap_or(saved.num_envs),

@@ -783,8 +783,10 @@ fn a_run_resumed_from_its_checkpoint_ends_where_the_uninterrupted_run_ends() {
     assert!(err.contains("trained over") && err.contains("turn_left"), "{err}");
     let err = refused(tiny_run(&dir, "x", 6, Some(dir.join("straight/run/checkpoints/iter-000003"))), &s);
     assert!(err.contains("iter-000003.run.ron"), "{err}");
-    // More iterations than the run had: it goes on, annealing to the new total.
-    let (longer, _) = train(Arc::clone(&s), &tiny_run(&dir, "longer", 8, from())).expect("extend");
+    // More iterations than the run had: it goes on, annealing to the new total (named here by
+    // the checkpoint's manifest rather than its stem).
+    let manifest = Some(ckpt("straight", 4).with_extension("ron"));
+    let (longer, _) = train(Arc::clone(&s), &tiny_run(&dir, "longer", 8, manifest)).expect("extend");
     assert_eq!((longer.iterations, longer.ppo.num_iterations), (8, 8));
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -664,9 +664,9 @@ impl TrainRun {
             }
             None => {
                 let ppo = repertoire_learn::ppo::PpoConfig {
-                    num_envs: a.envs.unwrap_or(16),
-                    num_iterations: a.iterations.unwrap_or(200),
-                    seed: a.seed.unwrap_or(1),
+                    num_envs: a.envs.unwrap_or(base.num_envs),
+                    num_iterations: a.iterations.unwrap_or(base.num_iterations),
+                    seed: a.seed.unwrap_or(base.seed),
                     ent_coef: a.ent_coef.unwrap_or(base.ent_coef),
                     ..base
                 };

@@ -121,6 +121,12 @@ fn with_ext(path: &Path, ext: &str) -> PathBuf {
     path.with_extension(ext)
 }
 
+/// The manifest of the checkpoint `stem` (`…/iter-000100` → `…/iter-000100.ron`), as [`save`]
+/// writes and [`load`] reads it.
+pub fn manifest_path(stem: &Path) -> PathBuf {
+    with_ext(stem, "ron")
+}
+
 fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> CheckpointError + '_ {
     move |source| CheckpointError::Io { path: path.to_path_buf(), source }
 }
