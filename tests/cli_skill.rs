@@ -148,6 +148,21 @@ fn meta_train_eval_and_the_main_job() {
     let text = ok(&repertoire(&["meta", "eval", "--library", lib_s, "--trials", "2", "--zones", "front"]));
     assert!(text.contains("| front | 2 |") && text.contains("| all | 2 |"), "{text}");
     assert!(meta.join("eval/report.md").exists() && meta.join("eval/trials.csv").exists());
+    // The controller with its sit timed by the planner's copy writes its own report.
+    let args = ["meta", "eval", "--library", lib_s, "--trials", "1", "--zones", "front", "--horizon", "2"];
+    let text = ok(&repertoire(&[&args[..], &["--oracle-sit"]].concat()));
+    assert!(text.contains("| front | 1 |") && text.contains("timed by the planner's copy"), "{text}");
+    assert!(meta.join("eval-oracle-sit/report.md").exists());
+    // A gate threshold without a gate, and a gate missing its files, are refused by name.
+    let out = repertoire(&[&args[..], &["--ready-at", "0.3"]].concat());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("--readiness"), "{err}");
+    let none = dir.join("no-readiness");
+    let out = repertoire(&[&args[..], &["--readiness", none.to_str().unwrap()]].concat());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("no-readiness/readiness.ron"), "{err}");
+    let out = repertoire(&[&args[..], &["--oracle-sit", "--ready-at", "1.5"]].concat());
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("not a probability"));
     // The main job runs the trained controller on the default scenario.
     let text = ok(&repertoire(&["run", "--library", lib_s, "--trials", "1"]));
     assert!(text.contains("| front | 1 |") && text.contains("| behind | 1 |"), "{text}");

@@ -18,7 +18,9 @@ use repertoire_scenes::world::PropPlacement;
 
 use crate::env::{MetaEnv, MetaSetup};
 use crate::error::{MetaError, Result};
-use crate::planner::{Planner, PlannerConfig};
+use crate::planner::{Planner, PlannerConfig, terminal_skills};
+use crate::readiness::{Gate, Readiness, checked_act};
+use repertoire_learn::classify::Classifier;
 
 /// What chooses the skills in an evaluation.
 #[derive(Clone, Copy)]
@@ -27,6 +29,16 @@ pub enum Controller<'a> {
     Learned(&'a ActingHybrid),
     /// The search-based reference over the same skills ([`crate::planner`]).
     Planner(PlannerConfig),
+    /// A trained meta-controller whose terminal skills (sit) are checked in a copy of the
+    /// episode: at each decision a terminal skill that would succeed from here is taken, and
+    /// otherwise the controller chooses among the rest. An oracle of when to sit, with the
+    /// controller's own way there: it says how much of the gap to the planner is timing the sit.
+    Checked(&'a ActingHybrid, PlannerConfig),
+    /// A trained meta-controller gated by a learned readiness ([`crate::readiness`]): a
+    /// terminal skill (sit) only when the classifier gives it at least the threshold's chance of
+    /// succeeding from here, the other skills otherwise. No search: it acts from the
+    /// observation alone.
+    Gated(&'a ActingHybrid, &'a Readiness, Gate),
 }
 
 impl<'a> From<&'a ActingHybrid> for Controller<'a> {
@@ -39,6 +51,8 @@ impl<'a> From<&'a ActingHybrid> for Controller<'a> {
 pub(crate) enum Acting {
     Learned(Box<ActingHybrid>),
     Planner(Box<Planner>),
+    Checked(Box<ActingHybrid>, Box<Planner>),
+    Gated { head: Box<ActingHybrid>, readiness: Box<Classifier>, gate: Gate, terminal: Vec<bool> },
 }
 
 impl Acting {
@@ -50,6 +64,18 @@ impl Acting {
                 head.act(obs, mask, act);
             }
             Acting::Planner(planner) => planner.act(env, act),
+            Acting::Checked(head, planner) => {
+                checked_act(head, planner, env, obs, mask, act);
+            }
+            Acting::Gated { head, readiness, gate, terminal } => {
+                env.option_mask(mask);
+                let choice = mask.iter().zip(terminal.iter()).any(|(&m, &t)| m && t)
+                    && mask.iter().zip(terminal.iter()).any(|(&m, &t)| m && !t);
+                if choice {
+                    gate.apply(readiness.probability(obs), mask, terminal);
+                }
+                head.act(obs, mask, act);
+            }
         }
     }
 }
@@ -59,6 +85,15 @@ impl Controller<'_> {
         match self {
             Controller::Learned(head) => Acting::Learned(Box::new((*head).clone())),
             Controller::Planner(cfg) => Acting::Planner(Box::new(Planner::new(Arc::clone(setup), *cfg))),
+            Controller::Gated(head, readiness, gate) => Acting::Gated {
+                head: Box::new((*head).clone()),
+                readiness: Box::new(readiness.classifier.clone()),
+                gate: *gate,
+                terminal: terminal_skills(setup),
+            },
+            Controller::Checked(head, cfg) => {
+                Acting::Checked(Box::new((*head).clone()), Box::new(Planner::new(Arc::clone(setup), *cfg)))
+            }
         }
     }
 }

@@ -12,6 +12,7 @@ pub mod graph;
 pub mod judge;
 pub mod latent;
 pub mod planner;
+pub mod readiness;
 pub mod task;
 pub mod task_eval;
 pub mod toss;

@@ -55,6 +55,19 @@ pub fn write_action(setup: &MetaSetup, (option, target): Move, act: &mut [f32]) 
     act[2] = b;
 }
 
+/// Which of `setup`'s skills are terminal: the graph leaves no way out of them but themselves
+/// (sit), so once chosen they play to the episode's end.
+pub fn terminal_skills(setup: &MetaSetup) -> Vec<bool> {
+    let k = setup.skills.len();
+    let mut mask = vec![false; k];
+    (0..k)
+        .map(|c| {
+            setup.graph.allowed(Some(c), &mut mask);
+            mask.iter().enumerate().all(|(j, &m)| !m || j == c)
+        })
+        .collect()
+}
+
 /// A plan's simulated outcome.
 #[derive(Debug, Clone, PartialEq)]
 struct Outcome {
@@ -117,14 +130,8 @@ pub struct Planner {
 impl Planner {
     /// A planner over `setup`'s skills and graph.
     pub fn new(setup: Arc<MetaSetup>, cfg: PlannerConfig) -> Self {
-        let k = setup.skills.len();
-        let mut mask = vec![false; k];
-        let terminal = (0..k)
-            .map(|c| {
-                setup.graph.allowed(Some(c), &mut mask);
-                mask.iter().enumerate().all(|(j, &m)| !m || j == c)
-            })
-            .collect();
+        let mask = vec![false; setup.skills.len()];
+        let terminal = terminal_skills(&setup);
         let scratch = MetaEnv::new(Arc::clone(&setup));
         Planner {
             cfg,
@@ -188,6 +195,31 @@ impl Planner {
         }
         out.snapshot = self.scratch.snapshot();
         out
+    }
+
+    /// The skills and graph it plans over.
+    pub fn setup(&self) -> &MetaSetup {
+        &self.setup
+    }
+
+    /// Whether skill `c` has no way out but itself in the graph (sit): once chosen, it plays to
+    /// the episode's end.
+    pub fn is_terminal(&self, c: usize) -> bool {
+        self.terminal[c]
+    }
+
+    /// The first terminal skill `env` allows now that, held from its present state until the
+    /// episode ends (at most `horizon` decisions), ends it in success in the copy, so in the
+    /// episode too; `None` when none does.
+    pub fn terminal_that_succeeds(&mut self, env: &MetaEnv) -> Option<usize> {
+        let now = env.snapshot();
+        self.restore(&now);
+        self.scratch.allowed_now(&mut self.mask);
+        let candidates: Vec<usize> = (0..self.mask.len()).filter(|&c| self.mask[c] && self.terminal[c]).collect();
+        candidates.into_iter().find(|&c| {
+            self.restore(&now);
+            self.run_on((c, 0), &mut Vec::new(), 0.0).success
+        })
     }
 
     fn restore(&mut self, state: &[f64]) {

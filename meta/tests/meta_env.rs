@@ -790,3 +790,63 @@ fn a_run_resumed_from_its_checkpoint_ends_where_the_uninterrupted_run_ends() {
     assert_eq!((longer.iterations, longer.ppo.num_iterations), (8, 8));
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn the_oracle_sits_only_where_the_sit_succeeds_and_readiness_needs_a_ready_decision() {
+    // `meta eval --oracle-sit`: the controller's sits timed by the planner's copy. A trial
+    // that ends in the sit is one the copy saw succeed, so it succeeded; evaluation stays
+    // reproducible for a seed.
+    use repertoire_meta::eval::Controller;
+    use repertoire_meta::planner::PlannerConfig;
+    use repertoire_meta::readiness::{ReadinessOptions, learn};
+    let s = setup(None);
+    let dir = std::env::temp_dir().join(format!("repertoire-readiness-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let opts = MetaTrainOptions {
+        out: dir.join("meta"),
+        run_dir: dir.join("run"),
+        ppo: PpoConfig { num_envs: 2, num_steps: 4, num_iterations: 1, ..repertoire_meta::train::default_ppo() },
+        curriculum: false,
+        command: "test".into(),
+        resume: None,
+        checkpoint_every: 0,
+    };
+    train(Arc::clone(&s), &opts).expect("train");
+    let (_, head) = load(&dir.join("meta"), &s).expect("load");
+    let cfg = PlannerConfig { horizon: 4, repeats: 0 };
+    let zones = vec!["front".to_string()];
+    let a = evaluate(&s, Controller::Checked(&head, cfg), &zones, 3, 3, 5).expect("oracle evaluation");
+    let b = evaluate(&s, Controller::Checked(&head, cfg), &zones, 3, 3, 5).expect("again");
+    assert_eq!(a, b);
+    for t in &a.trials {
+        if t.skills.last().map(String::as_str) == Some("sit") {
+            assert!(t.success, "the oracle sat where the sit failed: {t:?}");
+        }
+    }
+    // Readiness over these barely trained skills: if no labelled decision would have seen the
+    // sit succeed there is nothing to fit, and the error says so; else a classifier is written
+    // that loads for this setup only.
+    let ropts = ReadinessOptions {
+        out: dir.join("readiness"),
+        zones: zones.clone(),
+        trials: 2,
+        seed: 3,
+        planner: cfg,
+        holdout: 2,
+        classifier: repertoire_learn::classify::ClassifierConfig { epochs: 2, ..Default::default() },
+        threshold: 0.5,
+        controller: "test".into(),
+        command: "test".into(),
+    };
+    match learn(Arc::clone(&s), &head, &ropts) {
+        Err(e) => assert!(e.to_string().contains("nothing to learn readiness from"), "{e}"),
+        Ok(m) => {
+            assert!(m.train.ready > 0 && m.train.decisions >= m.train.ready, "{m:?}");
+            let r = repertoire_meta::readiness::Readiness::load(&dir.join("readiness"), &s).expect("loads");
+            assert_eq!(r.manifest, m);
+            let chain = setup(Some(SkillGraph::chain(&["walk_to", "turn_left", "sit"])));
+            let err = repertoire_meta::readiness::Readiness::load(&dir.join("readiness"), &chain).err().unwrap();
+            assert!(err.to_string().contains("readiness.ron"), "{err}");
+        }
+    }
+}

@@ -6,12 +6,14 @@ use std::sync::Arc;
 
 use anyhow::{Context, Result, bail};
 use clap::Subcommand;
+use repertoire_learn::classify::ClassifierConfig;
 use repertoire_learn::ppo::IterationMetrics;
 use repertoire_meta::deliver::{DeliveryWindow, deliver};
 use repertoire_meta::distill::{DistillOptions, distill};
 use repertoire_meta::eval::{Controller, evaluate, save_worst};
 use repertoire_meta::latent::{self, LatentSetup};
 use repertoire_meta::planner::PlannerConfig;
+use repertoire_meta::readiness::{Gate, Readiness, ReadinessOptions, learn};
 use repertoire_meta::task_eval::{StartGrid, evaluate_toss, evaluate_warehouse, save_worst_toss, save_worst_warehouse};
 use repertoire_meta::train::{CHECKPOINT_EVERY, MetaTrainOptions, default_ppo, load, train};
 use repertoire_meta::{Advance, MetaSetup, SkillGraph, TaskSpec};
@@ -168,6 +170,49 @@ pub enum MetaCommand {
         #[arg(long)]
         no_curriculum: bool,
     },
+    /// Learn when the terminal skill (sit) will succeed (sitting scenarios): the controller plays
+    /// seeded episodes without sitting, and every decision where it could have sat is labelled
+    /// with whether the sit would have succeeded (played out in a copy of the episode); a
+    /// classifier of the meta observation is fitted to the labels. Writes
+    /// OUT/readiness.{ron,safetensors}; `meta eval --readiness OUT` gates the controller's sit
+    /// by it.
+    Readiness {
+        /// Scenario RON file (default: the built-in scenes/sit.ron).
+        file: Option<PathBuf>,
+        /// Skill library.
+        #[arg(long, default_value = DEFAULT_LIBRARY)]
+        library: PathBuf,
+        /// The controller that plays the episodes (default: as `meta train` writes it).
+        #[arg(long)]
+        meta: Option<PathBuf>,
+        /// Where it goes (default: <meta>/readiness).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Episodes per zone.
+        #[arg(long, default_value_t = 1000)]
+        trials: usize,
+        /// Zones (default: all of the scenario's).
+        #[arg(long, value_delimiter = ',')]
+        zones: Vec<String>,
+        /// Seed of the episodes (apart from evaluation's 2024, so evaluation meets new starts).
+        #[arg(long, default_value_t = 11)]
+        seed: u64,
+        /// Every Nth episode is held out of the fit and measures it (0: none).
+        #[arg(long, default_value_t = 5)]
+        holdout: usize,
+        /// Passes over the labelled decisions.
+        #[arg(long, default_value_t = ClassifierConfig::default().epochs)]
+        epochs: usize,
+        /// Hidden widths of the classifier.
+        #[arg(long, value_delimiter = ',', default_values_t = ClassifierConfig::default().hidden)]
+        hidden: Vec<usize>,
+        /// The probability at or above which the gated controller sits (recorded; `meta eval
+        /// --ready-at` overrides it).
+        #[arg(long, default_value_t = 0.5, value_parser = probability)]
+        ready_at: f32,
+        #[command(flatten)]
+        plan: PlannerArgs,
+    },
     /// Record where a controller delivers the character to a skill (sitting scenarios): at
     /// every decision the skill is not running, the state with the seat's pose, kept when the
     /// seat lies within --max-offset / --max-turn of where the skill's clip expects it. The
@@ -272,6 +317,24 @@ pub enum MetaCommand {
         /// folder runs/planner-<scenario>).
         #[arg(long)]
         planner: bool,
+        /// Sitting: the trained controller with an oracle of when to sit: at each decision a
+        /// terminal skill (sit) that the planner's copy of the episode shows succeeding from
+        /// here is taken, and otherwise the controller chooses among the other skills. Says
+        /// how much of the gap between a controller and the planner is the timing of the sit.
+        #[arg(long, conflicts_with = "planner")]
+        oracle_sit: bool,
+        /// Sitting: gate the controller's sit by a learned readiness (`meta readiness`): sit
+        /// at --ready-at or above, never below --veto-below, as the controller chooses between.
+        #[arg(long, conflicts_with_all = ["planner", "oracle_sit"])]
+        readiness: Option<PathBuf>,
+        /// The readiness at or above which the controller sits (default: the one recorded with
+        /// it).
+        #[arg(long, value_parser = probability)]
+        ready_at: Option<f32>,
+        /// The readiness below which the controller may not sit (default: --ready-at, so the
+        /// gate alone decides; between the two the controller decides).
+        #[arg(long, value_parser = probability)]
+        veto_below: Option<f32>,
         #[command(flatten)]
         plan: PlannerArgs,
     },
@@ -332,13 +395,7 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
             no_curriculum,
         } => {
             let setup = setup(file.as_ref(), &library, &[], &[])?;
-            if !matches!(setup.task, TaskSpec::Sit { .. }) {
-                bail!(
-                    "{}: the planner, and so `meta distill`, handles sitting scenarios only (this one is {})",
-                    setup.model.scenario.path.display(),
-                    setup.task.name()
-                );
-            }
+            sitting_only(&setup, "the planner, and so `meta distill`, handles")?;
             let planner = plan.config()?;
             if episodes == 0 || epochs == 0 {
                 bail!("--episodes and --epochs must each be at least 1");
@@ -399,6 +456,46 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
             if trained {
                 println!("the fitted controller before PPO: {}", out.join("fitted").display());
             }
+            Ok(())
+        }
+        MetaCommand::Readiness {
+            file,
+            library,
+            meta,
+            out,
+            trials,
+            zones,
+            seed,
+            holdout,
+            epochs,
+            hidden,
+            ready_at,
+            plan,
+        } => {
+            let setup = setup(file.as_ref(), &library, &[], &[])?;
+            sitting_only(&setup, "readiness is learned for")?;
+            let meta = meta.unwrap_or_else(|| setup_meta(&library, &setup));
+            let (_, head) = load(&meta, &setup)?;
+            let out = out.unwrap_or_else(|| meta.join("readiness"));
+            let opts = ReadinessOptions {
+                out: out.clone(),
+                zones: zones_or_all(zones, &setup.model.scenario.scenario),
+                trials,
+                seed,
+                planner: plan.config()?,
+                holdout,
+                classifier: ClassifierConfig { hidden, epochs, seed, ..ClassifierConfig::default() },
+                threshold: ready_at,
+                controller: meta.display().to_string(),
+                command,
+            };
+            let manifest = learn(setup, &head, &opts).context("learning the sit's readiness")?;
+            print!("{}", manifest.markdown());
+            println!(
+                "\nreadiness written to {} (evaluate the gated controller: repertoire meta eval --readiness {})",
+                out.display(),
+                out.display()
+            );
             Ok(())
         }
         MetaCommand::Deliver {
@@ -487,6 +584,10 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
             worst,
             latent,
             planner,
+            oracle_sit,
+            readiness,
+            ready_at,
+            veto_below,
             plan,
         } => {
             if planner {
@@ -494,13 +595,7 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
                 if latent.is_some() || meta.is_some() {
                     bail!("--planner chooses the skills itself: it takes neither --meta nor --latent");
                 }
-                if !matches!(setup.task, TaskSpec::Sit { .. }) {
-                    bail!(
-                        "{}: --planner evaluates sitting scenarios only (this one is {})",
-                        setup.model.scenario.path.display(),
-                        setup.task.name()
-                    );
-                }
+                sitting_only(&setup, "--planner evaluates")?;
                 let out = out.unwrap_or_else(|| {
                     PathBuf::from("runs").join(format!("planner-{}", setup.model.scenario.scenario.name))
                 });
@@ -535,7 +630,13 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
                 worst_recorded(&recs, &out);
                 return Ok(());
             }
+            let gated = oracle_sit || readiness.is_some() || ready_at.is_some() || veto_below.is_some();
             if let Some((model, dir)) = latent_low_level(file.as_ref(), latent)? {
+                if gated {
+                    bail!(
+                        "--oracle-sit, --readiness, --ready-at and --veto-below gate the skills' sit: not over a latent low level"
+                    );
+                }
                 no_skill_options(&chain, &skills)?;
                 let zones = zones_or_all(zones, &model.scenario.scenario);
                 let args = LatentEval { library, meta, trials: trials.unwrap_or(10_000), zones, batch, seed, out };
@@ -544,7 +645,11 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
             let setup = setup(file.as_ref(), &library, &chain, &skills)?;
             let meta = meta.unwrap_or_else(|| setup_meta(&library, &setup));
             let (_, head) = load(&meta, &setup)?;
+            let out_given = out.clone();
             let out = out.unwrap_or_else(|| meta.join("eval"));
+            if gated {
+                sitting_only(&setup, "--oracle-sit, --readiness, --ready-at and --veto-below gate the sit of")?;
+            }
             match setup.task {
                 TaskSpec::Sit { .. } => {}
                 TaskSpec::Warehouse(_) => {
@@ -574,11 +679,58 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
             }
             let trials = trials.unwrap_or(10_000);
             let zones = zones_or_all(zones, &setup.model.scenario.scenario);
-            let report = evaluate(&setup, &head, &zones, trials, batch, seed)?;
+            if oracle_sit {
+                let cfg = plan.config()?;
+                let out = out_given.unwrap_or_else(|| meta.join("eval-oracle-sit"));
+                let started = std::time::Instant::now();
+                let controller = Controller::Checked(&head, cfg);
+                let report = evaluate(&setup, controller, &zones, trials, batch, seed)?;
+                print!("{}", report.markdown());
+                report.write(&out)?;
+                println!(
+                    "\ncontroller with the sit timed by the planner's copy: {} trials in {:.1} s; report.md, \
+                     trials.csv and report.json written to {}",
+                    report.trials.len(),
+                    started.elapsed().as_secs_f64(),
+                    out.display()
+                );
+                let recs =
+                    save_worst(&setup, controller, &report, &zones, trials, seed, worst, false, &out.join("worst"))?;
+                super::replay::pages_beside(&recs);
+                worst_recorded(&recs, &out);
+                return Ok(());
+            }
+            let gate = readiness.map(|dir| Readiness::load(&dir, &setup).map(|r| (r, dir))).transpose()?;
+            let controller = match &gate {
+                Some((r, dir)) => {
+                    let sit_at = ready_at.unwrap_or(r.manifest.threshold);
+                    let gate = Gate { sit_at, veto_below: veto_below.unwrap_or(sit_at) };
+                    if gate.veto_below > gate.sit_at {
+                        bail!(
+                            "--veto-below {} is above the readiness the controller sits at ({sit_at})",
+                            gate.veto_below
+                        );
+                    }
+                    println!(
+                        "the sit gated by the readiness in {}: sits at p ≥ {}, never at p < {}\n",
+                        dir.display(),
+                        gate.sit_at,
+                        gate.veto_below
+                    );
+                    Controller::Gated(&head, r, gate)
+                }
+                None => {
+                    if ready_at.is_some() || veto_below.is_some() {
+                        bail!("--ready-at and --veto-below set a readiness gate, and there is none (--readiness DIR)");
+                    }
+                    Controller::Learned(&head)
+                }
+            };
+            let report = evaluate(&setup, controller, &zones, trials, batch, seed)?;
             print!("{}", report.markdown());
             report.write(&out)?;
             println!("\nreport.md, trials.csv and report.json written to {}", out.display());
-            let recs = save_worst(&setup, &head, &report, &zones, trials, seed, worst, false, &out.join("worst"))?;
+            let recs = save_worst(&setup, controller, &report, &zones, trials, seed, worst, false, &out.join("worst"))?;
             super::replay::pages_beside(&recs);
             if !recs.is_empty() {
                 println!(
@@ -591,6 +743,25 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
             Ok(())
         }
     }
+}
+
+/// Refuses a scenario that is not a sitting one: "FILE: WHAT sitting scenarios only (this one
+/// is TASK)".
+fn sitting_only(setup: &MetaSetup, what: &str) -> Result<()> {
+    if !matches!(setup.task, TaskSpec::Sit { .. }) {
+        bail!(
+            "{}: {what} sitting scenarios only (this one is {})",
+            setup.model.scenario.path.display(),
+            setup.task.name()
+        );
+    }
+    Ok(())
+}
+
+/// A probability: a number from 0 to 1.
+fn probability(s: &str) -> std::result::Result<f32, String> {
+    let p: f32 = s.parse().map_err(|e| format!("{s}: {e}"))?;
+    if (0.0..=1.0).contains(&p) { Ok(p) } else { Err(format!("{s} is not a probability (0 to 1)")) }
 }
 
 /// `zones`, or every spawn zone of `scenario` when none are named.

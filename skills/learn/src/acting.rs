@@ -28,7 +28,7 @@ pub struct ActingPolicy {
     scratch: Vec<f32>,
 }
 
-fn corrupt(path: &Path, reason: impl Into<String>) -> CheckpointError {
+pub(crate) fn corrupt(path: &Path, reason: impl Into<String>) -> CheckpointError {
     CheckpointError::Corrupt { path: path.to_path_buf(), reason: reason.into() }
 }
 
@@ -41,7 +41,7 @@ fn f32s(path: &Path, st: &SafeTensors<'_>, name: &str) -> Result<(Vec<usize>, Ve
     Ok((t.shape().to_vec(), v))
 }
 
-fn f64s(path: &Path, st: &SafeTensors<'_>, name: &str) -> Result<Vec<f64>, CheckpointError> {
+pub(crate) fn f64s(path: &Path, st: &SafeTensors<'_>, name: &str) -> Result<Vec<f64>, CheckpointError> {
     let t = st.tensor(name).map_err(|_| corrupt(path, format!("no tensor `{name}`")))?;
     if t.dtype() != Dtype::F64 {
         return Err(corrupt(path, format!("tensor `{name}` is {:?}, expected F64", t.dtype())));
@@ -177,18 +177,18 @@ impl ActingPolicy {
 }
 
 /// One tensor to write: name, type, shape, little-endian bytes.
-type Entry = (String, Dtype, Vec<usize>, Vec<u8>);
+pub(crate) type Entry = (String, Dtype, Vec<usize>, Vec<u8>);
 
 fn bytes32(v: &[f32]) -> Vec<u8> {
     v.iter().flat_map(|x| x.to_le_bytes()).collect()
 }
 
-fn bytes64(v: &[f64]) -> Vec<u8> {
+pub(crate) fn bytes64(v: &[f64]) -> Vec<u8> {
     v.iter().flat_map(|x| x.to_le_bytes()).collect()
 }
 
 /// The layers of `mlp` as `PREFIX.i.weight` / `PREFIX.i.bias` tensors.
-fn layer_entries(prefix: &str, mlp: &MlpInference) -> Vec<Entry> {
+pub(crate) fn layer_entries(prefix: &str, mlp: &MlpInference) -> Vec<Entry> {
     let mut entries = Vec::new();
     for (i, (inputs, outputs, w, b)) in mlp.layers().iter().enumerate() {
         entries.push((format!("{prefix}.{i}.weight"), Dtype::F32, vec![*inputs, *outputs], bytes32(w)));
@@ -222,7 +222,7 @@ pub fn read_mlp(path: &Path, st: &SafeTensors<'_>, prefix: &str) -> Result<MlpIn
 }
 
 /// Writes `entries` to `path` as safetensors (format tag `format`), atomically.
-fn write_entries(path: &Path, entries: &[Entry], format: &str) -> Result<(), CheckpointError> {
+pub(crate) fn write_entries(path: &Path, entries: &[Entry], format: &str) -> Result<(), CheckpointError> {
     let views: Vec<(String, TensorView<'_>)> = entries
         .iter()
         .map(|(n, dt, shape, data)| (n.clone(), TensorView::new(*dt, shape.clone(), data).expect("sizes match")))

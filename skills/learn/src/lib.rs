@@ -2,6 +2,7 @@
 pub mod acting;
 pub mod bench;
 pub mod checkpoint;
+pub mod classify;
 pub mod env;
 pub mod envs;
 pub mod nn;

@@ -705,7 +705,7 @@ pub fn explained_variance(predicted: &[f32], target: &[f32]) -> f32 {
 }
 
 /// Fisher–Yates shuffle driven by `rng` (portable, so minibatches are reproducible).
-fn shuffle(v: &mut [usize], rng: &mut impl Rng) {
+pub(crate) fn shuffle(v: &mut [usize], rng: &mut impl Rng) {
     for i in (1..v.len()).rev() {
         let j = rng.random_range(0..=i);
         v.swap(i, j);
