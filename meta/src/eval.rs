@@ -19,7 +19,7 @@ use repertoire_scenes::world::PropPlacement;
 use crate::env::{MetaEnv, MetaSetup};
 use crate::error::{MetaError, Result};
 use crate::planner::{Planner, PlannerConfig, terminal_skills};
-use crate::readiness::{Gate, Readiness, checked_act};
+use crate::readiness::{Gate, Readiness, checked_act, terminal_choice};
 use repertoire_learn::classify::Classifier;
 
 /// What chooses the skills in an evaluation.
@@ -64,14 +64,10 @@ impl Acting {
                 head.act(obs, mask, act);
             }
             Acting::Planner(planner) => planner.act(env, act),
-            Acting::Checked(head, planner) => {
-                checked_act(head, planner, env, obs, mask, act);
-            }
+            Acting::Checked(head, planner) => checked_act(head, planner, env, obs, mask, act),
             Acting::Gated { head, readiness, gate, terminal } => {
                 env.option_mask(mask);
-                let choice = mask.iter().zip(terminal.iter()).any(|(&m, &t)| m && t)
-                    && mask.iter().zip(terminal.iter()).any(|(&m, &t)| m && !t);
-                if choice {
+                if terminal_choice(mask, terminal) {
                     gate.apply(readiness.probability(obs), mask, terminal);
                 }
                 head.act(obs, mask, act);

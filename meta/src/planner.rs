@@ -202,10 +202,9 @@ impl Planner {
         &self.setup
     }
 
-    /// Whether skill `c` has no way out but itself in the graph (sit): once chosen, it plays to
-    /// the episode's end.
-    pub fn is_terminal(&self, c: usize) -> bool {
-        self.terminal[c]
+    /// Which skills are terminal ([`terminal_skills`]).
+    pub fn terminal(&self) -> &[bool] {
+        &self.terminal
     }
 
     /// The first terminal skill `env` allows now that, held from its present state until the

@@ -30,6 +30,13 @@ use crate::eval::trial_rng;
 use crate::planner::{Planner, PlannerConfig, terminal_skills, write_action};
 use repertoire_learn::run_dir::git_hash;
 
+/// Whether `mask` offers a choice between a terminal skill and another: a terminal skill is
+/// allowed, and so is some other (not the case once one is playing).
+pub(crate) fn terminal_choice(mask: &[bool], terminal: &[bool]) -> bool {
+    let allowed = |want: bool| mask.iter().zip(terminal).any(|(&m, &t)| m && t == want);
+    allowed(true) && allowed(false)
+}
+
 /// Restricts `mask` to the terminal skills when `ready` and one is allowed, else to the
 /// others when one is allowed (a mask with nothing else is left as it is: a terminal skill
 /// already playing continues).
@@ -69,10 +76,8 @@ impl Gate {
 }
 
 /// One decision of the controller with its sits timed by the copy (`meta eval --oracle-sit`):
-/// a terminal skill that succeeds from here is taken, otherwise `head` chooses among the other
-/// skills. Returns the label of the decision: `Some(success)` when a terminal skill could be
-/// chosen instead of another (whether one would have succeeded), `None` when there was no
-/// such choice (none allowed, or one already playing).
+/// where a terminal skill could be chosen instead of another, one that succeeds from here (in
+/// the copy, so in the episode) is taken, and otherwise `head` chooses among the other skills.
 pub(crate) fn checked_act(
     head: &mut ActingHybrid,
     planner: &mut Planner,
@@ -80,23 +85,16 @@ pub(crate) fn checked_act(
     obs: &[f32],
     mask: &mut [bool],
     act: &mut [f32],
-) -> Option<bool> {
+) {
     env.option_mask(mask);
-    let terminal_allowed = mask.iter().enumerate().any(|(c, &m)| m && planner.is_terminal(c));
-    let others_allowed = mask.iter().enumerate().any(|(c, &m)| m && !planner.is_terminal(c));
-    // No choice to make: no terminal skill allowed, or one already playing.
-    if !terminal_allowed || !others_allowed {
-        head.act(obs, mask, act);
-        return None;
+    if terminal_choice(mask, planner.terminal()) {
+        if let Some(c) = planner.terminal_that_succeeds(env) {
+            write_action(planner.setup(), (c, 0), act);
+            return;
+        }
+        gate(mask, planner.terminal(), false);
     }
-    if let Some(c) = planner.terminal_that_succeeds(env) {
-        write_action(planner.setup(), (c, 0), act);
-        return Some(true);
-    }
-    let terminal: Vec<bool> = (0..mask.len()).map(|c| planner.is_terminal(c)).collect();
-    gate(mask, &terminal, false);
     head.act(obs, mask, act);
-    Some(false)
 }
 
 /// A trained readiness classifier with what it was trained for.
@@ -235,8 +233,7 @@ fn label_episode(
     env.reset(&mut rng, &mut obs);
     loop {
         env.option_mask(&mut mask);
-        let either = |want: bool| mask.iter().zip(&terminal).any(|(&m, &t)| m && t == want);
-        if either(true) && either(false) {
+        if terminal_choice(&mask, &terminal) {
             let ready = planner.terminal_that_succeeds(&env).is_some();
             out.obs.extend_from_slice(&obs);
             out.labels.push(if ready { 1.0 } else { 0.0 });
