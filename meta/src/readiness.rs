@@ -28,6 +28,7 @@ use crate::env::{MetaEnv, MetaSetup};
 use crate::error::{MetaError, Result};
 use crate::eval::trial_rng;
 use crate::planner::{Planner, PlannerConfig, terminal_skills, write_action};
+use crate::train::check_skill_weights;
 use repertoire_learn::run_dir::git_hash;
 
 /// Whether `mask` offers a choice between a terminal skill and another: a terminal skill is
@@ -134,7 +135,7 @@ pub struct ReadinessOptions {
 /// How well the classifier separates one set of decisions.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Fit {
-    /// Decisions, and of them ones where the terminal skill would have succeeded.
+    /// Decisions.
     pub decisions: usize,
     /// Decisions where it would have succeeded.
     pub ready: usize,
@@ -180,13 +181,13 @@ pub struct ReadinessManifest {
     pub threshold: f32,
     /// The controller whose episodes were labelled.
     pub controller: String,
-    /// Zones and episodes per zone labelled, and the seed.
+    /// Zones labelled.
     pub zones: Vec<String>,
     /// Episodes per zone.
     pub trials: usize,
-    /// Seed.
+    /// Seed of the labelling episodes.
     pub seed: u64,
-    /// Hidden widths, epochs.
+    /// The classifier's hidden widths.
     pub hidden: Vec<usize>,
     /// Passes over the data.
     pub epochs: usize,
@@ -194,7 +195,7 @@ pub struct ReadinessManifest {
     pub train: Fit,
     /// The held-out episodes' decisions (`None` when none were held out).
     pub holdout: Option<Fit>,
-    /// Seconds labelling, and fitting.
+    /// Seconds labelling.
     pub labelling_s: f64,
     /// Seconds fitting.
     pub fitting_s: f64,
@@ -342,7 +343,6 @@ impl Readiness {
         let manifest: ReadinessManifest = ron::from_str(&text)
             .map_err(|e| MetaError::Invalid(format!("{}:{}: {}", path.display(), e.span.start.line, e.code)))?;
         let names: Vec<String> = setup.skills.iter().map(|s| s.name.clone()).collect();
-        let weights: Vec<u64> = setup.skills.iter().map(|s| s.policy_fnv1a).collect();
         if manifest.skills != names || manifest.body_hash != setup.model.body.content_hash() {
             return Err(MetaError::Invalid(format!(
                 "{}: made for skills {:?} on body {}; this scenario has {:?} on body {}",
@@ -353,15 +353,7 @@ impl Readiness {
                 setup.model.body.content_hash()
             )));
         }
-        if let Some(((name, &made), &now)) =
-            names.iter().zip(&manifest.skill_weights).zip(&weights).find(|((_, a), b)| a != b)
-        {
-            return Err(MetaError::Invalid(format!(
-                "{}: made over skill `{name}` with weights {made:016x}, but the library's has {now:016x} \
-                 (it was retrained since): label again with `repertoire meta readiness`",
-                path.display()
-            )));
-        }
+        check_skill_weights(&path, &manifest.skill_weights, setup, "label again with `repertoire meta readiness`")?;
         let weights_path = dir.join("readiness.safetensors");
         let classifier = Classifier::load(&weights_path).map_err(|e| MetaError::Invalid(e.to_string()))?;
         if manifest.obs_dim != setup.obs_dim() || classifier.inputs() != setup.obs_dim() {

@@ -509,35 +509,41 @@ pub fn load(dir: &Path, setup: &MetaSetup) -> Result<(MetaManifest, ActingHybrid
             setup.obs_dim()
         )));
     }
-    check_skill_weights(&path, &manifest, setup)?;
+    check_skill_weights(
+        &path,
+        &manifest.skill_weights,
+        setup,
+        "retrain the controller, or point --library at the library it was trained over",
+    )?;
     let head = ActingHybrid::load(&dir.join("meta.safetensors")).map_err(|e| MetaError::Invalid(e.to_string()))?;
     Ok((manifest, head))
 }
 
-/// Refuses a controller whose manifest pins other skill weights than the library's.
-fn check_skill_weights(path: &Path, manifest: &MetaManifest, setup: &MetaSetup) -> Result<()> {
-    if manifest.skill_weights.is_empty() {
+/// Refuses a file (`path`: a controller's or readiness' manifest) that pins other skill
+/// weights (`pinned`, in option order) than the library's, saying `remedy`. An empty list
+/// (written before skills were pinned) loads with a warning.
+pub(crate) fn check_skill_weights(path: &Path, pinned: &[u64], setup: &MetaSetup, remedy: &str) -> Result<()> {
+    if pinned.is_empty() {
         tracing::warn!(
             manifest = %path.display(),
-            "the controller records no skill weights (trained before skills were pinned): \
-             cannot check that the library holds the skills it was trained over"
+            "the manifest records no skill weights (written before skills were pinned): \
+             cannot check that the library holds the skills it was made over"
         );
         return Ok(());
     }
-    if manifest.skill_weights.len() != setup.skills.len() {
+    if pinned.len() != setup.skills.len() {
         return Err(MetaError::Invalid(format!(
             "{}: records {} skill weights for {} skills",
             path.display(),
-            manifest.skill_weights.len(),
+            pinned.len(),
             setup.skills.len()
         )));
     }
-    for (skill, &trained) in setup.skills.iter().zip(&manifest.skill_weights) {
+    for (skill, &trained) in setup.skills.iter().zip(pinned) {
         if skill.policy_fnv1a != trained {
             return Err(MetaError::Invalid(format!(
-                "{}: trained over skill `{}` with weights {trained:016x}, but the library's `{}` has \
-                 weights {:016x} (it was retrained since): retrain the controller, or point \
-                 --library at the library it was trained over",
+                "{}: made over skill `{}` with weights {trained:016x}, but the library's `{}` has \
+                 weights {:016x} (it was retrained since): {remedy}",
                 path.display(),
                 skill.name,
                 skill.name,
