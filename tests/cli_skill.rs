@@ -89,6 +89,27 @@ fn train_eval_and_finetune_a_chain() {
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("--fresh-critic") && err.contains("--warm-start"), "{err}");
+    // A critic warm-up as long as the run would leave the policy untrained.
+    let out = repertoire(&[
+        "skill",
+        "finetune",
+        turn.to_str().unwrap(),
+        "--from",
+        "walk",
+        "--iterations",
+        "5",
+        "--critic-warmup",
+        "5",
+        "--library",
+        lib,
+    ]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("warm-up of 5") && err.contains("--critic-warmup"), "{err}");
+    let out = repertoire(&["skill", "train", walk.to_str().unwrap(), "--learning-rate", "0", "--library", lib]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--learning-rate"), "{err}");
 }
 
 #[test]

@@ -8,7 +8,8 @@
 //! pose in the character's heading frame ([`PoolState::seat`]), keeping those whose seat lies
 //! within a window around where the skill expects it. The result is an ordinary end-pose pool:
 //! `repertoire skill finetune sit.ron --from FILE.ron` starts sit episodes from it with the chair
-//! where the controller left it.
+//! where the controller left it. The states at which the controller did switch to the skill are
+//! kept apart too ([`Delivery::handover_pool`]), window or not: where the skill is really started.
 
 use std::sync::Arc;
 
@@ -50,6 +51,10 @@ impl DeliveryWindow {
 pub struct Delivery {
     /// The kept states (at most the requested number, an even spread over all in the window).
     pub pool: Pool,
+    /// The states at which the controller did switch to the skill, in or out of the window
+    /// (at most the requested number, an even spread): where the skill is actually started,
+    /// the distribution a fine-tune for this controller wants.
+    pub handover_pool: Pool,
     /// Decisions seen with the skill not running.
     pub decisions: usize,
     /// Of those, decisions whose seat lay in the window.
@@ -99,9 +104,10 @@ pub fn deliver<'c>(
     let controller = controller.into();
     let mut counts = Counts::default();
     let mut kept = Vec::new();
+    let mut handed = Vec::new();
     for (zi, zone) in zones.iter().enumerate() {
         *setup.zones.write().expect("never poisoned") = vec![zone.clone()];
-        let per_trial: Vec<(Counts, Vec<PoolState>)> = (0..trials)
+        let per_trial: Vec<(Counts, Vec<PoolState>, Vec<PoolState>)> = (0..trials)
             .into_par_iter()
             .map(|i| {
                 let mut env = MetaEnv::new(Arc::clone(setup));
@@ -112,51 +118,63 @@ pub fn deliver<'c>(
                 let mut mask = vec![true; setup.skills.len()];
                 let mut c = Counts::default();
                 let mut states = Vec::new();
+                let mut handed = Vec::new();
                 let mut last_inside = false;
                 env.reset(&mut rng, &mut obs);
                 loop {
                     let before = env.current() != Some(target);
-                    let mut inside = false;
+                    let mut here = None;
                     if before {
                         c.decisions += 1;
                         let state = PoolState::capture_with_seat(env.world(), &env.world().placements()[seat]);
-                        inside = state.seat.is_some_and(|s| window.contains(s));
-                        if inside {
-                            states.push(state);
-                        }
+                        let inside = state.seat.is_some_and(|s| window.contains(s));
+                        here = Some((state, inside));
                     }
                     ctl.act(&env, &obs, &mut mask, &mut act);
                     let out = env.step(&act, &mut obs);
-                    if before && env.current() == Some(target) {
-                        c.handovers += 1;
-                        c.handovers_in_window += usize::from(inside);
-                        last_inside = inside;
+                    let handover = before && env.current() == Some(target);
+                    if let Some((state, inside)) = here {
+                        if handover {
+                            c.handovers += 1;
+                            c.handovers_in_window += usize::from(inside);
+                            last_inside = inside;
+                            handed.push(state.clone());
+                        }
+                        if inside {
+                            states.push(state);
+                        }
                     }
                     if out.terminated || out.truncated {
                         if out.terms[0] > 0.5 {
                             c.successes += 1;
                             c.successes_in_window += usize::from(last_inside);
                         }
-                        return (c, states);
+                        return (c, states, handed);
                     }
                 }
             })
             .collect();
-        for (c, states) in per_trial {
+        for (c, states, h) in per_trial {
             counts.decisions += c.decisions;
             counts.handovers += c.handovers;
             counts.handovers_in_window += c.handovers_in_window;
             counts.successes += c.successes;
             counts.successes_in_window += c.successes_in_window;
             kept.extend(states);
+            handed.extend(h);
         }
     }
     let in_window = kept.len();
-    let step = in_window.div_ceil(max_states.max(1)).max(1);
-    let states: Vec<PoolState> = kept.into_iter().step_by(step).collect();
-    let pool = Pool { skill: format!("delivered:{skill}"), body_hash: setup.model.body.content_hash(), states };
+    let spread = |all: Vec<PoolState>| {
+        let step = all.len().div_ceil(max_states.max(1)).max(1);
+        all.into_iter().step_by(step).collect::<Vec<_>>()
+    };
+    let body_hash = setup.model.body.content_hash();
+    let pool = Pool { skill: format!("delivered:{skill}"), body_hash: body_hash.clone(), states: spread(kept) };
+    let handover_pool = Pool { skill: format!("handed-over:{skill}"), body_hash, states: spread(handed) };
     Ok(Delivery {
         pool,
+        handover_pool,
         decisions: counts.decisions,
         in_window,
         handovers: counts.handovers,

@@ -423,6 +423,8 @@ fn deliveries_record_the_seat_where_the_controller_hands_over_within_the_window(
     // Sit ends each planner episode that reaches it: at most one handover per episode here,
     // and every handover in an unbounded window.
     assert!(all.handovers <= all.episodes && all.handovers_in_window == all.handovers, "{all:?}");
+    assert_eq!(all.handover_pool.states.len(), all.handovers, "one state per handover");
+    assert!(all.handover_pool.states.iter().all(|st| all.pool.states.contains(st)), "handovers are decisions too");
     // The start states: standing 1.5 m or more from the chair, so the seat is well away.
     let far = all.pool.states.iter().filter(|st| st.seat.is_some_and(|p| p[0].hypot(p[1]) > 1.0)).count();
     assert!(far >= 4, "{far} states with the seat over 1 m away");
@@ -442,6 +444,7 @@ fn deliveries_record_the_seat_where_the_controller_hands_over_within_the_window(
     assert_eq!(capped.pool.states[0], all.pool.states[0]);
     let none = deliver(&s, planner, "sit", &zones, 2, 3, window(0.0, 0.0), 1000).expect("deliver");
     assert_eq!(none.in_window, 0);
+    assert_eq!(none.handover_pool, all.handover_pool, "handovers are kept whatever the window");
 
     let err = deliver(&s, planner, "dance", &zones, 1, 3, w, 10).expect_err("unknown skill").to_string();
     assert!(err.contains("`dance`") && err.contains("walk"), "{err}");

@@ -257,6 +257,10 @@ pub enum MetaCommand {
         /// The pool file (default: runs/delivered-<skill>.ron).
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Also write the states at which the controller did switch to the skill, in or out of
+        /// the window, as a pool (default: <out> with `-handovers` before `.ron`).
+        #[arg(long)]
+        handovers_out: Option<PathBuf>,
     },
     /// Evaluate a trained meta-controller. Sitting: success and minimum distance per zone,
     /// transition matrices. Warehouse: phases completed per episode by start phase and a pick-up
@@ -512,6 +516,7 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
             max_turn,
             max_states,
             out,
+            handovers_out,
         } => {
             let skill = repertoire_skill::SkillSetup::new(repertoire_skill::spec::SpecFile::load(&spec)?, &library)?;
             let name = skill.spec.spec.name.clone();
@@ -540,7 +545,18 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
             if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
                 std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
             }
+            let handovers_out = handovers_out.unwrap_or_else(|| {
+                let stem = out.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+                out.with_file_name(format!("{stem}-handovers.ron"))
+            });
+            if handovers_out == out {
+                bail!("--handovers-out {} is the --out file", out.display());
+            }
+            if let Some(dir) = handovers_out.parent().filter(|d| !d.as_os_str().is_empty()) {
+                std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+            }
             delivery.pool.save(&out)?;
+            delivery.handover_pool.save(&handovers_out)?;
             println!(
                 "{} episodes, {} decisions before `{name}`, {} with the seat within {max_offset} m / {max_turn}° of \
                  where `{name}` expects it ({:+.2}, {:+.2} m, {:+.0}°); {} states written to {} in {:.1} s",
@@ -563,6 +579,11 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
             println!(
                 "{} episodes succeeded, {} of them after a handover with the seat in the window",
                 delivery.successes, delivery.successes_in_window
+            );
+            println!(
+                "the {} states at the handovers, in the window or not, written to {}",
+                delivery.handover_pool.states.len(),
+                handovers_out.display()
             );
             println!("fine-tune from it: repertoire skill finetune {} --from {}", spec.display(), out.display());
             Ok(())

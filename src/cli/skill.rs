@@ -129,6 +129,15 @@ pub struct TrainArgs {
     /// train a fresh value network instead of continuing the critic saved with its policy.
     #[arg(long)]
     fresh_critic: bool,
+    /// Train only the value network for the first N iterations, the policy held as it starts
+    /// (default: the spec's `ppo.critic_warmup`): a fine-tune with a fresh critic, or from
+    /// starts the saved critic never saw, otherwise lets the critic's first errors push a
+    /// converged policy off what it knew.
+    #[arg(long)]
+    critic_warmup: Option<usize>,
+    /// Adam's learning rate, annealed to 0 over the iterations (default: the spec's).
+    #[arg(long)]
+    learning_rate: Option<f64>,
     /// Seed (default: the spec's).
     #[arg(long)]
     seed: Option<u64>,
@@ -186,6 +195,23 @@ fn train_cmd(
         );
     }
     let mut spec = SpecFile::load(spec_path)?;
+    if let Some(lr) = a.learning_rate {
+        if !(lr.is_finite() && lr > 0.0) {
+            bail!("--learning-rate must be a positive number, got {lr}");
+        }
+        spec.spec.ppo.learning_rate = lr;
+    }
+    if let Some(n) = a.critic_warmup {
+        spec.spec.ppo.critic_warmup = n;
+    }
+    let iterations = a.iterations.unwrap_or(spec.spec.iterations);
+    if spec.spec.ppo.critic_warmup >= iterations {
+        bail!(
+            "a critic warm-up of {} iterations leaves none of the {iterations} for the policy: lower \
+             --critic-warmup or raise --iterations",
+            spec.spec.ppo.critic_warmup
+        );
+    }
     if let Some((from, fraction, speed)) = finetune {
         spec.spec.init = Init::Pools { from, fraction, speed };
         spec.spec.init.check().map_err(|m| anyhow::anyhow!("skill finetune --from/--fraction/--speed: {m}"))?;

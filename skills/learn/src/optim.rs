@@ -62,6 +62,16 @@ impl Adam {
         }
     }
 
+    /// Forget every step taken: moments zeroed and the step count back to 0, as [`Adam::new`]
+    /// leaves them (the learning rate and betas stay).
+    pub fn reset(&mut self) {
+        self.t = 0;
+        for (m, v) in &mut self.moments {
+            m.iter_mut().for_each(|x| *x = 0.0);
+            v.iter_mut().for_each(|x| *x = 0.0);
+        }
+    }
+
     /// The moments as `(first, second)` plain vectors, in [`Parameters`] order.
     pub fn moments(&self) -> Vec<(Vec<f32>, Vec<f32>)> {
         self.moments.iter().map(|(m, v)| (m.to_vec(), v.to_vec())).collect()

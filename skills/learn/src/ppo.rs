@@ -57,6 +57,12 @@ pub struct PpoConfig {
     pub max_grad_norm: f32,
     /// Stop the epochs early when the approximate KL exceeds this.
     pub target_kl: Option<f32>,
+    /// The first this many iterations train the value network only, the policy held as it is;
+    /// Adam then starts afresh for both. A policy fine-tuned with a fresh critic (or on new
+    /// starts its old critic never saw) is otherwise pushed by advantages that are mostly the
+    /// critic's error, and a converged policy can unlearn in those first iterations what the
+    /// fine-tune meant to build on. 0: none.
+    pub critic_warmup: usize,
     /// Normalise observations with running statistics.
     pub normalize_obs: bool,
     /// Scale rewards by the running std of the discounted return.
@@ -90,6 +96,7 @@ impl Default for PpoConfig {
             vf_coef: 0.5,
             max_grad_norm: 0.5,
             target_kl: None,
+            critic_warmup: 0,
             normalize_obs: true,
             normalize_reward: true,
             parallel_envs: true,
@@ -474,6 +481,12 @@ impl<E: Env> Ppo<E> {
             cfg.gae_lambda,
         );
 
+        // The policy starts learning after the critic's warm-up: with Adam's moments and step
+        // count reset, so its first steps are bias-corrected as a fresh optimiser's are.
+        let policy_on = self.iteration >= cfg.critic_warmup;
+        if cfg.critic_warmup > 0 && self.iteration == cfg.critic_warmup {
+            self.optimizer.reset();
+        }
         let batch = b.rewards.len();
         let mb_size = (batch / cfg.num_minibatches.max(1)).max(1);
         let mut indices: Vec<usize> = (0..batch).collect();
@@ -484,7 +497,7 @@ impl<E: Env> Ppo<E> {
             epochs += 1;
             shuffle(&mut indices, &mut self.rng);
             for mb in indices.chunks(mb_size) {
-                let s = self.minibatch_step(mb, &advantages, &returns, od, ad);
+                let s = self.minibatch_step(mb, &advantages, &returns, od, ad, policy_on);
                 for (acc, v) in sums.iter_mut().zip(s) {
                     *acc += v;
                 }
@@ -512,9 +525,18 @@ impl<E: Env> Ppo<E> {
     /// One gradient step on the samples `mb`. The minibatch is cut into `grad_shards` equal
     /// parts whose losses (each weighted by its share of the rows) are differentiated on rayon's
     /// pool and whose gradients are summed in shard order, so the result does not depend on the
-    /// number of threads. Returns `[policy loss, value loss, approx KL, clip fraction, entropy,
+    /// number of threads. Without `policy_on` only the value loss is differentiated (the
+    /// critic's warm-up). Returns `[policy loss, value loss, approx KL, clip fraction, entropy,
     /// grad norm]`.
-    fn minibatch_step(&mut self, mb: &[usize], advantages: &[f32], returns: &[f32], od: usize, ad: usize) -> [f32; 6] {
+    fn minibatch_step(
+        &mut self,
+        mb: &[usize],
+        advantages: &[f32],
+        returns: &[f32],
+        od: usize,
+        ad: usize,
+        policy_on: bool,
+    ) -> [f32; 6] {
         let m = mb.len();
         let mut adv: Vec<f32> = mb.iter().map(|&k| advantages[k]).collect();
         if self.cfg.norm_adv && m > 1 {
@@ -528,7 +550,7 @@ impl<E: Env> Ppo<E> {
         let results: Vec<(Gradients<f32, Cpu>, [f32; 5])> = shards
             .par_iter()
             .map(|(rows, adv)| {
-                let batch = Shard { rows, adv, returns, od, ad, weight: rows.len() as f32 / m as f32 };
+                let batch = Shard { rows, adv, returns, od, ad, weight: rows.len() as f32 / m as f32, policy_on };
                 shard_loss(agent, cfg, buf, dev, &batch)
             })
             .collect();
@@ -609,6 +631,8 @@ struct Shard<'a> {
     ad: usize,
     /// The shard's share of the minibatch's rows (its loss is scaled by it).
     weight: f32,
+    /// Whether the policy terms enter the loss (not during the critic's warm-up).
+    policy_on: bool,
 }
 
 /// The PPO loss on one shard, differentiated: the gradients and, each scaled by the shard's
@@ -665,8 +689,8 @@ fn shard_loss(
     let entropy = entropy.mean();
     let w = s.weight;
     let stats = [pg_loss.as_vec()[0] * w, v_loss.as_vec()[0] * w, entropy.as_vec()[0] * w, kl * w, clip_frac * w];
-    let loss = (pg_loss - entropy * cfg.ent_coef + v_loss * cfg.vf_coef) * w;
-    (loss.backward(), stats)
+    let loss = if s.policy_on { pg_loss - entropy * cfg.ent_coef + v_loss * cfg.vf_coef } else { v_loss * cfg.vf_coef };
+    ((loss * w).backward(), stats)
 }
 
 /// `into += from`, tensor by tensor over `model`'s parameters.
