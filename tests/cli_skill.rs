@@ -268,3 +268,31 @@ fn a_negative_or_non_finite_entropy_bonus_is_refused() {
     }
     assert!(!lib.exists(), "nothing was written");
 }
+
+#[test]
+fn meta_deliver_refuses_one_file_for_both_pools() {
+    let dir = common::temp_dir("cli-deliver");
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let spec = root.join("skills/skill/specs/sit_reach.ron");
+    let lib = root.join("skills/library");
+    let same = dir.join("pool.ron");
+    let out = repertoire(&[
+        "meta",
+        "deliver",
+        "--planner",
+        "--spec",
+        spec.to_str().unwrap(),
+        "--library",
+        lib.to_str().unwrap(),
+        "--trials",
+        "50",
+        "--out",
+        same.to_str().unwrap(),
+        "--handovers-out",
+        same.to_str().unwrap(),
+    ]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--handovers-out") && err.contains("pool.ron"), "{err}");
+    assert!(!same.exists(), "nothing written");
+}

@@ -529,6 +529,20 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
             let setup = setup(file.as_ref(), &library, &[], &[])?;
             let zones = zones_or_all(zones, &setup.model.scenario.scenario);
             let window = DeliveryWindow { expected, max_offset_m: max_offset, max_turn_deg: max_turn };
+            // Both output paths are settled before the episodes are played.
+            let out = out.unwrap_or_else(|| PathBuf::from("runs").join(format!("delivered-{name}.ron")));
+            let handovers_out = handovers_out.unwrap_or_else(|| {
+                let stem = out.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+                out.with_file_name(format!("{stem}-handovers.ron"))
+            });
+            if handovers_out == out {
+                bail!("--handovers-out {} is the --out file", out.display());
+            }
+            for dir in
+                [&out, &handovers_out].into_iter().filter_map(|p| p.parent()).filter(|d| !d.as_os_str().is_empty())
+            {
+                std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+            }
             let started = std::time::Instant::now();
             let delivery = if planner {
                 if meta.is_some() {
@@ -541,20 +555,6 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
                 let (_, head) = load(&meta, &setup)?;
                 deliver(&setup, &head, &name, &zones, trials, seed, window, max_states)?
             };
-            let out = out.unwrap_or_else(|| PathBuf::from("runs").join(format!("delivered-{name}.ron")));
-            if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
-                std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-            }
-            let handovers_out = handovers_out.unwrap_or_else(|| {
-                let stem = out.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-                out.with_file_name(format!("{stem}-handovers.ron"))
-            });
-            if handovers_out == out {
-                bail!("--handovers-out {} is the --out file", out.display());
-            }
-            if let Some(dir) = handovers_out.parent().filter(|d| !d.as_os_str().is_empty()) {
-                std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-            }
             delivery.pool.save(&out)?;
             delivery.handover_pool.save(&handovers_out)?;
             println!(
