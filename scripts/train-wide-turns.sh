@@ -27,7 +27,8 @@
 #      iterations, 23.0 min sharing the 2-core machine): 88.4 → 94.6 % from the clip start,
 #      55.0 → 61.2 % from the 56° turns, but 23.9 → 14.6 % from a held-out delivery's
 #      handovers; the planner over it seats 43.3 / 26.7 / 25.0 % (60 trials per zone) against
-#      38.3 / 24.3 / 21.7 %. Not shipped.
+#      38.3 / 24.3 / 21.7 %, and the controller retrained over it (`meta train --iterations
+#      2400`) 16.0 / 3.5 / 1.8 % against the shipped 14.3 / 8.6 / 4.4 %. Not shipped.
 # Usage: bash scripts/train-wide-turns.sh [LIBRARY] — env: TRIALS (1000), EXTRA (more arguments
 # for every train/finetune, e.g. "--envs 8"). The library's meta-controller pins every skill's
 # weights, so retrain it afterwards (`repertoire meta train --library LIBRARY --iterations 2400`).
