@@ -585,7 +585,12 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
                 delivery.handover_pool.states.len(),
                 handovers_out.display()
             );
-            println!("fine-tune from it: repertoire skill finetune {} --from {}", spec.display(), out.display());
+            println!(
+                "fine-tune from either: repertoire skill finetune {} --from {} (or {})",
+                spec.display(),
+                out.display(),
+                handovers_out.display()
+            );
             Ok(())
         }
         MetaCommand::Eval {

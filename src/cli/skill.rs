@@ -204,14 +204,6 @@ fn train_cmd(
     if let Some(n) = a.critic_warmup {
         spec.spec.ppo.critic_warmup = n;
     }
-    let iterations = a.iterations.unwrap_or(spec.spec.iterations);
-    if spec.spec.ppo.critic_warmup >= iterations {
-        bail!(
-            "a critic warm-up of {} iterations leaves none of the {iterations} for the policy: lower \
-             --critic-warmup or raise --iterations",
-            spec.spec.ppo.critic_warmup
-        );
-    }
     if let Some((from, fraction, speed)) = finetune {
         spec.spec.init = Init::Pools { from, fraction, speed };
         spec.spec.init.check().map_err(|m| anyhow::anyhow!("skill finetune --from/--fraction/--speed: {m}"))?;

@@ -103,6 +103,15 @@ fn ppo_for(setup: &SkillSetup, opts: &TrainOptions) -> Result<(Ppo<SkillEnv>, Ve
         cfg.parallel_envs = false;
     }
     cfg.num_iterations = opts.iterations.unwrap_or(setup.spec.spec.iterations).max(1);
+    if cfg.critic_warmup >= cfg.num_iterations {
+        return Err(SkillError::Invalid(format!(
+            "{}: a critic warm-up of {} iterations (`ppo.critic_warmup`, --critic-warmup) leaves none of the {} \
+             for the policy: lower the warm-up or raise the iterations",
+            setup.spec.path.display(),
+            cfg.critic_warmup,
+            cfg.num_iterations
+        )));
+    }
     // A fine-tune inherits the lineage of the skill it starts from (also when it resumes from
     // one of its own checkpoints: the library still holds that skill until the fine-tune ends).
     let mut lineage = Vec::new();
