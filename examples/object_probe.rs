@@ -4,7 +4,9 @@
 //! object touches the floor or the body falls, and then which of the two ended the episode:
 //! whether the clip's grip holds the object at all, and how a trained policy loses it.
 //!
-//! `cargo run --release --example object_probe -- skills/skill/specs/carry.ron [--starts=5] [--policy=skills/library]`
+//! `--grip=X` overrides the spec's grip level (0 lets go, 1 grips; see `World::set_grip`).
+//!
+//! `cargo run --release --example object_probe -- skills/skill/specs/carry.ron [--starts=5] [--policy=skills/library] [--grip=0]`
 
 use rand::SeedableRng;
 use repertoire_learn::env::{Env, EnvRng};
@@ -30,13 +32,17 @@ fn main() -> anyhow::Result<()> {
     let r = &setup.settings.reference;
     let frames = r.frames();
     let mut env = setup.env();
+    let grip: Option<f64> = args.iter().find_map(|a| a.strip_prefix("--grip=")).map(str::parse).transpose()?;
     let p = env.world().model().prop_id(&prop).ok_or_else(|| anyhow::anyhow!("no prop `{prop}`"))?;
     let mut obs = vec![0.0; env.obs_dim()];
     let mut rng = EnvRng::seed_from_u64(1);
     let mut action = vec![0.0f32; r.dof];
     for t in 0..starts {
         env.reset(&mut rng, &mut obs);
-        println!("start {t}: frame {}", env.task().phase());
+        if let Some(g) = grip {
+            env.world_mut().set_grip(g); // after the reset, which sets the spec's level
+        }
+        println!("start {t}: frame {}, grip {}", env.task().phase(), env.world().grip());
         for step in 0..setup.max_steps as usize {
             if let Some(skill) = policy.as_mut() {
                 skill.policy.act(&obs, &mut action);

@@ -76,6 +76,8 @@ pub struct MetaSkill {
     /// The scenario's precondition on switching to it (`skill_graph.guards`): the prop index
     /// and the largest pelvis–prop distance (m) at which it may be chosen.
     pub guard: Option<(usize, f64)>,
+    /// The hands' grip level while it plays (its spec's `grip`).
+    pub grip: f64,
 }
 
 /// Where a target-taking skill's training targets lay, in its heading frame: `distance_m` away,
@@ -91,11 +93,9 @@ pub struct TargetRange {
 impl TargetRange {
     /// The range of a skill's goal (the walk stage 2's), or a 2 m ± 90° default.
     pub fn of(goal: &Goal) -> TargetRange {
-        match goal {
-            Goal::Target { distance_m, azimuth_deg, .. } => {
-                TargetRange { distance_m: *distance_m, azimuth_deg: *azimuth_deg }
-            }
-            _ => TargetRange { distance_m: (2.0, 2.0), azimuth_deg: 90.0 },
+        match goal.steering() {
+            Some(st) => TargetRange { distance_m: st.distance_m, azimuth_deg: st.azimuth_deg },
+            None => TargetRange { distance_m: (2.0, 2.0), azimuth_deg: 90.0 },
         }
     }
 }
@@ -241,7 +241,7 @@ impl MetaSetup {
             let (layout, props) = SkillProps::resolve(&model, &task, name, &s.manifest.observation.features)?;
             observed.extend(crate::bind::observed_props(&s.manifest.observation.features).map(String::from));
             s.check_fits_layout(&model, &layout)?;
-            let uses_target = matches!(s.manifest.spec.goal, Goal::Target { .. });
+            let uses_target = s.manifest.spec.goal.steering().is_some();
             let guard = sc
                 .skill_graph
                 .iter()
@@ -259,6 +259,7 @@ impl MetaSetup {
                 policy_fnv1a: s.manifest.policy_fnv1a,
                 layout,
                 props,
+                grip: s.manifest.spec.grip,
                 policy: s.policy,
                 guard,
             });
@@ -529,6 +530,7 @@ impl MetaEnv {
         self.skill_obs = obs;
         let skill = &self.setup.skills[c];
         self.map.targets(&self.skill_act, &mut self.targets);
+        self.world.set_grip(skill.grip);
         // Skills are finite networks on finite observations; a diverged world ends the episode
         // through the fall test below.
         let _ = self.world.step(&self.targets);

@@ -20,6 +20,7 @@ fn root() -> &'static Path {
 /// The shipped scenario `name` with only walk and the turns and a `seconds` episode limit.
 fn walking(name: &str, skills: &str, limit: &str, seconds: f64) -> Arc<MetaSetup> {
     let text = std::fs::read_to_string(root().join(format!("scenes/{name}.ron"))).unwrap();
+    assert!(text.contains(skills) && text.contains(limit), "scenes/{name}.ron no longer says {skills} and {limit}");
     let text = text
         .replace(skills, r#"skills: ["walk", "turn_left", "turn_right"]"#)
         .replace(limit, &format!("time_limit_s: {seconds:.1}"));

@@ -180,6 +180,10 @@ pub struct BodyIndex {
     pub foot_touch: Vec<usize>,
     /// sensordata addresses of the hand touch sensors.
     pub hand_touch: Vec<usize>,
+    /// The hands' grip actuators (left, right) where the scene added them
+    /// ([`crate::compose::GRIP_ACTUATORS`]); empty for the body alone and scenes without a
+    /// free object.
+    pub grip: Vec<usize>,
 }
 
 impl BodyIndex {
@@ -270,9 +274,12 @@ impl BodyIndex {
                 ctrl_range: ctrl,
             });
         }
-        for a in 0..trn_type.len() {
+        for (a, &trn) in trn_type.iter().enumerate() {
+            let name = model.id_to_name(MjtObjBase::mjOBJ_ACTUATOR, a).unwrap_or("(unnamed)");
+            if name.starts_with(crate::compose::ADDED_ACTUATOR_PREFIX) && trn != MjtTrn::mjTRN_JOINT {
+                continue; // added by the scene (the grip), not the body's
+            }
             if !joints.iter().any(|j| j.actuator == a) {
-                let name = model.id_to_name(MjtObjBase::mjOBJ_ACTUATOR, a).unwrap_or("(unnamed)");
                 return Err(def.map_error(
                     &map.actuated_joints.first().cloned().unwrap_or_default(),
                     format!("actuator `{name}` drives no joint listed in actuated_joints; list its joint or remove it"),
@@ -310,6 +317,10 @@ impl BodyIndex {
             hand_of,
             foot_touch,
             hand_touch,
+            grip: crate::compose::GRIP_ACTUATORS
+                .iter()
+                .filter_map(|n| model.name_to_id(MjtObjBase::mjOBJ_ACTUATOR, n))
+                .collect(),
         })
     }
 

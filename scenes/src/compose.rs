@@ -25,6 +25,23 @@ const CONTACT: &str = r#"condim="3" friction="1 0.05 0.01" contype="1" conaffini
 const GRIP_CONTACT: &str =
     r#"condim="4" friction="2 0.1 0.01" contype="1" conaffinity="1" group="0" margin="0" gap="0""#;
 
+/// Force (N) with which each hand's grip pulls a touching object against it at full grip.
+///
+/// The body's hands are spheres without fingers. In scenes with a free object (a box or a
+/// ball) each hand gets a MuJoCo adhesion actuator (`repertoire/grip/left`, `.../right`): at
+/// grip level 1 it presses every geom the hand touches against the hand with this force,
+/// spread over the hand's contacts, which is what lets friction hold a box while the walker
+/// swings it through a stride. It acts only on contact, so an object not touched is not
+/// pulled. A skill sets the level (its spec's `grip`, 0 by default; see
+/// [`crate::World::set_grip`]); policies never see or drive it. 120 N against a box of at
+/// most 7 kg (69 N) under friction 2 is several times what holding it needs, and well below
+/// what the arms' actuators can pull apart.
+pub const GRIP_FORCE_N: f64 = 120.0;
+/// Prefix of the actuators Repertoire adds to a scene (they drive no body joint).
+pub const ADDED_ACTUATOR_PREFIX: &str = "repertoire/";
+/// Names of the left and right hands' grip actuators.
+pub const GRIP_ACTUATORS: [&str; 2] = ["repertoire/grip/left", "repertoire/grip/right"];
+
 /// Number of wall segments of a bucket.
 pub const BUCKET_WALLS: usize = 12;
 
@@ -58,6 +75,17 @@ pub fn scene_mjcf(body: &BodyDef, scenario: &Scenario) -> Result<String> {
         prop_mjcf(&mut out, prop);
     }
     out.push_str("  </worldbody>\n");
+    if scenario.props.iter().any(|p| matches!(p, Prop::Box(_) | Prop::Ball(_))) {
+        out.push_str("  <actuator>\n");
+        for (name, hand) in GRIP_ACTUATORS.iter().zip([&body.map.left_hand, &body.map.right_hand]) {
+            let _ = writeln!(
+                out,
+                r#"    <adhesion name="{name}" body="{}" ctrlrange="0 1" gain="{GRIP_FORCE_N}"/>"#,
+                xml_escape(hand)
+            );
+        }
+        out.push_str("  </actuator>\n");
+    }
     out.push_str(&body.mjcf[close..]);
     Ok(out)
 }

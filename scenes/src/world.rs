@@ -214,6 +214,8 @@ pub struct World {
     /// The integration state ([`BEFORE_LAST`]) before the last substep of the last step, so a
     /// snapshot can be restored with the same derived quantities (see [`World::restore`]).
     before_last: Vec<f64>,
+    /// The hands' grip level in [0, 1], written to the grip actuators at every step.
+    grip: f64,
 }
 
 /// What of MuJoCo's state [`World`] keeps from before a step's last substep: time, qpos, qvel,
@@ -247,7 +249,7 @@ impl World {
             })
             .collect();
         let before_last = vec![0.0; shared.model.state_size(BEFORE_LAST)];
-        let mut world = Self { shared, data, placements, owns_model: false, stepped: false, before_last };
+        let mut world = Self { shared, data, placements, owns_model: false, stepped: false, before_last, grip: 0.0 };
         world.forward();
         world
     }
@@ -280,6 +282,7 @@ impl World {
     /// Starts an episode: draws the props, then stands the character at `(x, y)` facing `yaw`.
     pub fn reset(&mut self, rng: &mut impl Rng, x: f64, y: f64, yaw: f64) {
         self.data.reset();
+        self.set_grip(self.grip); // MuJoCo's reset zeroes every control
         self.sample_props(rng);
         self.place_standing(x, y, yaw);
     }
@@ -660,6 +663,10 @@ impl World {
         self.data.act_mut().copy_from_slice(take(n));
         let n = self.data.ctrl().len();
         self.data.ctrl_mut().copy_from_slice(take(n));
+        // The grip level lives in its actuators' ctrl, so the snapshot carries it.
+        if let Some(&g) = self.shared.index.grip.first() {
+            self.grip = self.data.ctrl()[g];
+        }
         let warm = take(nv);
         let nmocap = self.data.mocap_pos().len();
         for (dst, src) in self.data.mocap_pos_mut().iter_mut().zip(take(3 * nmocap).chunks(3)) {
@@ -701,6 +708,28 @@ impl World {
         Ok(())
     }
 
+    /// Sets the hands' grip level (clamped to [0, 1]) for the following steps: each hand then
+    /// presses what it touches against itself with `level` × [`crate::compose::GRIP_FORCE_N`].
+    /// It stays until set again (resets keep it; a [`World::snapshot`] carries it in the grip
+    /// actuators' controls). A scene without a free object has no grip actuators and ignores it.
+    pub fn set_grip(&mut self, level: f64) {
+        self.grip = if level.is_finite() { level.clamp(0.0, 1.0) } else { 0.0 };
+        let ctrl = self.data.ctrl_mut();
+        for &g in &self.shared.index.grip {
+            ctrl[g] = self.grip;
+        }
+    }
+
+    /// The grip level the next steps apply.
+    pub fn grip(&self) -> f64 {
+        self.grip
+    }
+
+    /// Whether the scene has grip actuators on the hands.
+    pub fn has_grip(&self) -> bool {
+        !self.shared.index.grip.is_empty()
+    }
+
     /// Sets every PD target to the current joint angle (so the body holds its pose).
     fn hold_pose(&mut self) {
         let idx = &self.shared.index;
@@ -728,6 +757,9 @@ impl World {
         let ctrl = self.data.ctrl_mut();
         for (j, &a) in joints.iter().zip(action) {
             ctrl[j.actuator] = a.clamp(j.ctrl_range[0], j.ctrl_range[1]);
+        }
+        for &g in &self.shared.index.grip {
+            ctrl[g] = self.grip;
         }
         for i in 0..self.shared.substeps {
             if i + 1 == self.shared.substeps {
@@ -997,6 +1029,7 @@ impl World {
             SceneError::Usage(format!("no spawn zone `{zone}` in {}", shared.scenario.path.display()))
         })?;
         self.data.reset();
+        self.set_grip(self.grip); // MuJoCo's reset zeroes every control
         self.sample_props(rng);
         let around = z.around.as_deref().and_then(|n| shared.prop_id(n)).map(|p| self.placements[p]);
         let (x, y, yaw) = spawn_point(z, around, rng);

@@ -102,6 +102,18 @@ pub fn evaluate(
         })
         .collect();
     let (od, ad) = (envs[0].obs_dim(), envs[0].act_dim());
+    if skill.policy.obs_dim() != od {
+        return Err(crate::SkillError::Mismatch {
+            path: skill.dir.join("manifest.ron"),
+            message: format!(
+                "skill `{}` observes {} values, the spec {} gives {od} (its goal's inputs differ); \
+                 train the skill with this spec (`skill train SPEC --warm-start` grows its input)",
+                skill.manifest.name,
+                skill.policy.obs_dim(),
+                setup.spec.path.display()
+            ),
+        });
+    }
     let mut rngs: Vec<EnvRng> = (0..batch)
         .map(|i| {
             let mut r = EnvRng::seed_from_u64(seed);
@@ -133,10 +145,7 @@ pub fn evaluate(
         normalized_length: 0.0,
         normalized_return: 0.0,
         mean_return: 0.0,
-        targets_per_trial: match settings.goal {
-            Goal::Target { reach_m, .. } if reach_m > 0.0 => Some(0.0),
-            _ => None,
-        },
+        targets_per_trial: settings.goal.steering().filter(|st| st.reach_m > 0.0).map(|_| 0.0),
     };
     let mut pool = Vec::new();
     // A cycle (walk) has no end pose: every trial ends at the same phase of it. Its pool takes

@@ -15,7 +15,7 @@ use repertoire_scenes::world::spawn_point;
 use crate::pool::{Pool, PoolState};
 use crate::quat::{mul, rotate_z, yaw_quat};
 use crate::reference::{END_EFFECTORS, Reference, local_end_effectors, to_heading};
-use crate::spec::{Goal, Imitation, Init, Termination};
+use crate::spec::{Goal, Imitation, Init, Steering, Termination};
 use repertoire_scenes::ThrowSpec;
 
 /// Names of the reward terms and metrics each step reports (unweighted similarities in [0, 1],
@@ -59,6 +59,8 @@ pub struct TaskSettings {
     pub seat: Option<(usize, [f64; 3])>,
     /// For object goals: the box or ball, the pedestal, and the frames that hold it.
     pub object: Option<ObjectSetup>,
+    /// The hands' grip level (the spec's `grip`), set on the world at every episode start.
+    pub grip: f64,
 }
 
 /// The imitation task of one environment.
@@ -258,7 +260,16 @@ impl ImitationTask {
 
     /// An object goal's term in [0, 1], whether its state is reached, and whether the object
     /// touches the floor (which ends the episode).
-    fn object_goal(&self, world: &World, contacts: &repertoire_scenes::Contacts, f: usize) -> (f32, bool, bool) {
+    ///
+    /// `steer` is the target term of a steering goal (a carry with a target), which then takes
+    /// the place of the carry's velocity term.
+    fn object_goal(
+        &self,
+        world: &World,
+        contacts: &repertoire_scenes::Contacts,
+        f: usize,
+        steer: Option<f32>,
+    ) -> (f32, bool, bool) {
         let settings = &self.settings;
         let Some(obj) = &settings.object else { return (0.0, false, false) };
         let model = world.model();
@@ -270,7 +281,8 @@ impl ImitationTask {
         let d = dist(c, mid);
         let on = contacts.hands_on_prop(obj.prop);
         let hands_on = usize::from(on[0]) + usize::from(on[1]);
-        let dropped = contacts.prop_on_floor(obj.prop);
+        let dropped = contacts.prop_on_floor(obj.prop)
+            || matches!(settings.goal, Goal::Carry { hold_m, .. } if hold_m > 0.0 && d > hold_m);
         let hold = |scale: f64| 0.5 * similarity(scale, d * d) + 0.25 * hands_on as f32;
         let half = obj.half * world.placements()[obj.prop].scale;
         match &settings.goal {
@@ -281,10 +293,13 @@ impl ImitationTask {
                 (0.5 * hold(*scale) + 0.5 * raise, raised >= 0.8 * lift_m && hands_on > 0 && !dropped, dropped)
             }
             Goal::Carry { scale, speed_scale, .. } => {
-                let v = world.root_velocity_heading();
-                let e = (v[0] - settings.reference.velocity[f][0]).powi(2)
-                    + (v[1] - settings.reference.velocity[f][1]).powi(2);
-                let goal = 0.6 * hold(*scale) + 0.4 * similarity(*speed_scale, e);
+                let pace = steer.unwrap_or_else(|| {
+                    let v = world.root_velocity_heading();
+                    let e = (v[0] - settings.reference.velocity[f][0]).powi(2)
+                        + (v[1] - settings.reference.velocity[f][1]).powi(2);
+                    similarity(*speed_scale, e)
+                });
+                let goal = 0.6 * hold(*scale) + 0.4 * pace;
                 (goal, hands_on > 0 && d < 0.2 && !dropped, dropped)
             }
             Goal::PutDown { scale, .. } => {
@@ -304,6 +319,41 @@ impl ImitationTask {
                 (goal, !dropped && (hands_on > 0 || d < 0.2), dropped)
             }
             _ => (0.0, false, false),
+        }
+    }
+
+    /// A steering goal's target term at frame `f`: 1 on arriving (within `reach_m`; a new
+    /// target is then drawn around the current heading), else the approach term (DeepMimic's
+    /// target-heading speed term or the sigmoid on the distance's rate) with, above 0
+    /// `facing_scale`, a facing term for half.
+    fn steer_term(&mut self, world: &World, st: &Steering, f: usize) -> f32 {
+        let r = &self.settings.reference;
+        if st.reach_m > 0.0 && self.goal_distance(world) < st.reach_m {
+            // Arrived: a new target ahead, from the same ranges around the current heading.
+            let p = world.pelvis_frame().pos;
+            let next = draw_target(&mut self.target_rng, [p[0], p[1]], world.heading(), st.distance_m, st.azimuth_deg);
+            self.set_target(next, world);
+            self.reached += 1;
+            return 1.0;
+        }
+        let p = world.pelvis_frame().pos;
+        let (dx, dy) = (self.target[0] - p[0], self.target[1] - p[1]);
+        let norm = (dx * dx + dy * dy).sqrt().max(1e-9);
+        let approach = if st.speed_scale > 0.0 {
+            let d = world.root_dof_velocity();
+            let toward = (d[0] * dx + d[1] * dy) / norm;
+            let v_ref = (r.velocity[f][0].powi(2) + r.velocity[f][1].powi(2)).sqrt();
+            similarity(st.speed_scale, (v_ref - toward).max(0.0).powi(2))
+        } else {
+            let speed = (norm - self.last_distance) / r.dt;
+            (1.0 / (1.0 + (10.0 * speed).exp())) as f32
+        };
+        self.last_distance = norm;
+        if st.facing_scale > 0.0 {
+            let psi = wrap_angle(dy.atan2(dx) - world.heading());
+            0.5 * approach + 0.5 * similarity(st.facing_scale, psi * psi)
+        } else {
+            approach
         }
     }
 
@@ -424,15 +474,18 @@ impl ImitationTask {
 
         let contacts = world.contacts();
         let on_seat = settings.seat.is_some_and(|(p, _)| contacts.pelvis_on_prop(p));
-        let object = self.object_goal(world, &contacts, f);
-        if let Goal::Target { retarget_s, distance_m, azimuth_deg, .. } = &settings.goal {
+        let steering = settings.goal.steering();
+        if let Some(st) = steering {
             self.target_steps += 1;
-            if *retarget_s > 0.0 && self.target_steps as f64 * r.dt >= *retarget_s {
+            if st.retarget_s > 0.0 && self.target_steps as f64 * r.dt >= st.retarget_s {
                 let p = world.pelvis_frame().pos;
-                let next = draw_target(&mut self.target_rng, [p[0], p[1]], world.heading(), *distance_m, *azimuth_deg);
+                let next =
+                    draw_target(&mut self.target_rng, [p[0], p[1]], world.heading(), st.distance_m, st.azimuth_deg);
                 self.set_target(next, world);
             }
         }
+        let steer = steering.map(|st| self.steer_term(world, &st, f));
+        let object = self.object_goal(world, &contacts, f, steer);
         let goal = match &settings.goal {
             Goal::None => 0.0,
             Goal::RootVelocity { scale, .. } => {
@@ -447,37 +500,7 @@ impl ImitationTask {
                     + wrap_angle(roll - r.pitch_roll[f][1]).powi(2);
                 similarity(*scale, e)
             }
-            Goal::Target { reach_m, distance_m, azimuth_deg, .. }
-                if *reach_m > 0.0 && self.goal_distance(world) < *reach_m =>
-            {
-                // Arrived: a new target ahead, from the same ranges around the current heading.
-                let p = world.pelvis_frame().pos;
-                let next = draw_target(&mut self.target_rng, [p[0], p[1]], world.heading(), *distance_m, *azimuth_deg);
-                self.set_target(next, world);
-                self.reached += 1;
-                1.0
-            }
-            Goal::Target { speed_scale, facing_scale, .. } => {
-                let p = world.pelvis_frame().pos;
-                let (dx, dy) = (self.target[0] - p[0], self.target[1] - p[1]);
-                let norm = (dx * dx + dy * dy).sqrt().max(1e-9);
-                let approach = if *speed_scale > 0.0 {
-                    let d = world.root_dof_velocity();
-                    let toward = (d[0] * dx + d[1] * dy) / norm;
-                    let v_ref = (r.velocity[f][0].powi(2) + r.velocity[f][1].powi(2)).sqrt();
-                    similarity(*speed_scale, (v_ref - toward).max(0.0).powi(2))
-                } else {
-                    let speed = (norm - self.last_distance) / r.dt;
-                    (1.0 / (1.0 + (10.0 * speed).exp())) as f32
-                };
-                self.last_distance = norm;
-                if *facing_scale > 0.0 {
-                    let psi = wrap_angle(dy.atan2(dx) - world.heading());
-                    0.5 * approach + 0.5 * similarity(*facing_scale, psi * psi)
-                } else {
-                    approach
-                }
-            }
+            Goal::Target { .. } => steer.unwrap_or(0.0),
             Goal::Seat { .. } => {
                 let d = self.goal_distance(world);
                 let speed = (d - self.last_distance) / r.dt;
@@ -530,7 +553,7 @@ impl Task for ImitationTask {
     }
 
     fn extra_obs_dim(&self) -> usize {
-        3 + if matches!(self.settings.goal, Goal::Target { .. }) { 3 } else { 0 }
+        3 + if self.settings.goal.steering().is_some() { 3 } else { 0 }
     }
 
     fn observe_extra(&self, world: &World, out: &mut [f32]) {
@@ -539,7 +562,7 @@ impl Task for ImitationTask {
         out[0] = (TAU * phi).sin() as f32;
         out[1] = (TAU * phi).cos() as f32;
         out[2] = phi as f32;
-        if let Goal::Target { .. } = self.settings.goal {
+        if self.settings.goal.steering().is_some() {
             let p = world.pelvis_frame().pos;
             let d = to_heading(world.heading(), [self.target[0] - p[0], self.target[1] - p[1], 0.0]);
             let dist = (d[0] * d[0] + d[1] * d[1]).sqrt();
@@ -560,6 +583,7 @@ impl Task for ImitationTask {
             None => (0.0, 0.0, rng.random_range(-std::f64::consts::PI..std::f64::consts::PI)),
         };
         world.reset(rng, x, y, heading);
+        world.set_grip(self.settings.grip);
         let settings = Arc::clone(&self.settings);
         let r = &settings.reference;
         let last = r.frames() - 1;
@@ -631,10 +655,10 @@ impl Task for ImitationTask {
         self.start_frame = self.phase;
         self.start_heading = world.heading();
         self.reached = 0;
-        if let Goal::Target { distance_m, azimuth_deg, reach_m, retarget_s, .. } = settings.goal {
-            self.target = draw_target(rng, [x, y], heading, distance_m, azimuth_deg);
+        if let Some(st) = settings.goal.steering() {
+            self.target = draw_target(rng, [x, y], heading, st.distance_m, st.azimuth_deg);
             self.target_steps = 0;
-            if reach_m > 0.0 || retarget_s > 0.0 {
+            if st.reach_m > 0.0 || st.retarget_s > 0.0 {
                 self.target_rng = EnvRng::seed_from_u64(rng.random());
             }
         }

@@ -179,6 +179,7 @@ impl SkillSetup {
             pools,
             seat,
             object,
+            grip: s.grip,
         });
         Ok(SkillSetup { spec, model, body, layout, settings, clip, max_steps: max_steps.max(1) })
     }

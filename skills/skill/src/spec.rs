@@ -89,6 +89,29 @@ impl Default for Imitation {
     }
 }
 
+/// A 2-D walking target: where it is drawn, when it counts as reached or is replaced, and how
+/// the goal term pays for approaching it (the fields of [`Goal::Target`], which document them).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Steering {
+    /// Distance range of the target (m).
+    pub distance_m: (f64, f64),
+    /// Azimuth range (degrees either side of the heading).
+    pub azimuth_deg: f64,
+    /// Arrival radius (m); 0: one target per episode.
+    #[serde(default)]
+    pub reach_m: f64,
+    /// Sharpness of the target-heading speed term; 0: the sigmoid on the distance's rate.
+    #[serde(default)]
+    pub speed_scale: f64,
+    /// Sharpness of the facing term; 0: none.
+    #[serde(default)]
+    pub facing_scale: f64,
+    /// Seconds after which a target not reached is replaced; 0: never.
+    #[serde(default)]
+    pub retarget_s: f64,
+}
+
 /// The goal reward added to the imitation reward.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub enum Goal {
@@ -208,6 +231,18 @@ pub enum Goal {
         /// Sharpness of the velocity term.
         #[serde(default = "default_speed_scale")]
         speed_scale: f64,
+        /// Above 0, the box counts as dropped (the episode ends) once its centre is more than
+        /// this far (m) from the hands' midpoint: held out of both hands' reach, hanging from
+        /// one gripping hand or cradled on the forearms, it is no longer carried between them.
+        /// 0: only the floor drops it.
+        #[serde(default, skip_serializing_if = "is_zero")]
+        hold_m: f64,
+        /// With a target, carry steers: the policy observes a 2-D target as walk stage 2's does
+        /// (`[sin ψ, cos ψ, distance]`, drawn, reached and replaced the same way) and the
+        /// velocity term gives way to walk stage 2's target term, so the meta-controller can
+        /// send the box anywhere (the warehouse's other pedestal) rather than straight ahead.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        target: Option<Steering>,
     },
     /// Put down: the pedestal stands under the clip's hands at `release_s`; the box starts in
     /// the hands before it, on the pedestal after. Reward `weight · (0.5 + 0.5·released)` once
@@ -270,6 +305,18 @@ impl Goal {
             | Goal::Carry { weight, .. }
             | Goal::PutDown { weight, .. }
             | Goal::Catch { weight, .. } => *weight,
+        }
+    }
+
+    /// The 2-D target a goal steers towards, if it has one: walk stage 2's ([`Goal::Target`])
+    /// or a steering carry's.
+    pub fn steering(&self) -> Option<Steering> {
+        match self {
+            &Goal::Target { distance_m, azimuth_deg, reach_m, speed_scale, facing_scale, retarget_s, .. } => {
+                Some(Steering { distance_m, azimuth_deg, reach_m, speed_scale, facing_scale, retarget_s })
+            }
+            Goal::Carry { target, .. } => *target,
+            _ => None,
         }
     }
 
@@ -390,6 +437,17 @@ pub struct SkillSpec {
     pub iterations: usize,
     /// PPO and network settings.
     pub ppo: PpoConfig,
+    /// The hands' grip level while the skill plays, in [0, 1]: in scenes with a free object
+    /// each hand presses what it touches against itself with this fraction of
+    /// `repertoire_scenes::compose::GRIP_FORCE_N` (a MuJoCo adhesion actuator standing in for
+    /// fingers). The level is part of the skill, not of its policy: the meta-controller applies
+    /// each skill's own while it plays. 0 (the default) lets go.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub grip: f64,
+}
+
+fn is_zero(x: &f64) -> bool {
+    *x == 0.0
 }
 
 /// A spec with the file it came from.
@@ -464,7 +522,9 @@ impl SpecFile {
                 }
                 &[("grip_s", *grip_s), ("scale", *scale)]
             }
-            Goal::Carry { scale, speed_scale, .. } => &[("scale", *scale), ("speed_scale", *speed_scale)],
+            Goal::Carry { scale, speed_scale, hold_m, .. } => {
+                &[("scale", *scale), ("speed_scale", *speed_scale), ("hold_m", *hold_m)]
+            }
             Goal::PutDown { release_s, scale, .. } => &[("release_s", *release_s), ("scale", *scale)],
             Goal::Catch { catch_s, throw, scale, .. } => {
                 if let Err(m) = throw.validate(&format!("{} goal Catch", path.display())) {
@@ -481,6 +541,28 @@ impl SpecFile {
         }
         if spec.ppo.num_envs == 0 || spec.ppo.num_steps == 0 {
             return bad("ppo num_envs and num_steps must be positive".into());
+        }
+        if let Some(st) = spec.goal.steering() {
+            let (lo, hi) = st.distance_m;
+            if !(lo.is_finite() && hi.is_finite() && 0.0 < lo && lo <= hi) {
+                return bad(format!("the goal's target distance_m ({lo}, {hi}) must satisfy 0 < low ≤ high"));
+            }
+            if !(0.0..=180.0).contains(&st.azimuth_deg) {
+                return bad(format!("the goal's target azimuth_deg must be between 0 and 180, got {}", st.azimuth_deg));
+            }
+            for (name, v) in [
+                ("reach_m", st.reach_m),
+                ("speed_scale", st.speed_scale),
+                ("facing_scale", st.facing_scale),
+                ("retarget_s", st.retarget_s),
+            ] {
+                if !(v.is_finite() && v >= 0.0) {
+                    return bad(format!("the goal's target {name} must be finite and ≥ 0, got {v}"));
+                }
+            }
+        }
+        if !(0.0..=1.0).contains(&spec.grip) {
+            return bad(format!("grip must be between 0 and 1, got {}", spec.grip));
         }
         Ok(SpecFile { spec, path: path.to_path_buf() })
     }

@@ -99,6 +99,12 @@ fn bad_object_props_are_refused_with_the_spec_named() {
         .expect("unknown joint")
         .to_string();
     assert!(err.contains("carry.ron") && err.contains("right_wrist"), "{err}");
+    let bad = text.replace("grip: 1.0", "grip: 1.5");
+    let err = SpecFile::parse(&path, &bad).expect_err("grip above 1").to_string();
+    assert!(err.contains("carry.ron") && err.contains("grip must be between 0 and 1"), "{err}");
+    let bad = text.replace("hold_m: 0.2", "hold_m: -0.2");
+    let err = SpecFile::parse(&path, &bad).expect_err("negative hold_m").to_string();
+    assert!(err.contains("carry.ron") && err.contains("hold_m"), "{err}");
 }
 
 #[test]
@@ -172,6 +178,17 @@ fn carry_prefers_the_box_between_the_hands_to_the_box_on_the_floor() {
     task.place_at_frame(env.world_mut(), 10, 0.0, 0.0, 0.0);
     let held = task.score(env.world(), 10);
     assert!(held.terms[OBJECT] > 0.5 && !held.terminated, "{:?}", held.terms);
+    assert_eq!(env.world().grip(), 1.0, "carry grips (the spec's `grip`), set at every episode start");
+    // Hanging from one hand, 0.25 m below the hands' midpoint: off the floor, yet not carried
+    // between the hands (`hold_m: 0.2`), so the episode ends as for a drop.
+    let (_, hands) = object_and_hands(env.world(), obj.prop);
+    let below = [hands[0], hands[1], hands[2] - 0.25];
+    env.world_mut().set_free_prop(obj.prop, below, [1.0, 0.0, 0.0, 0.0], [0.0; 3], [0.0; 3]).unwrap();
+    let slipped = task.score(env.world(), 10);
+    assert!(slipped.terminated && slipped.reward == 0.0 && slipped.terms[OBJECT] < 0.5, "{slipped:?}");
+    let just = [hands[0], hands[1], hands[2] - 0.15];
+    env.world_mut().set_free_prop(obj.prop, just, [1.0, 0.0, 0.0, 0.0], [0.0; 3], [0.0; 3]).unwrap();
+    assert!(!task.score(env.world(), 10).terminated, "0.15 m off the midpoint is still held");
     env.world_mut().set_free_prop(obj.prop, [2.0, 0.0, 0.149], [1.0, 0.0, 0.0, 0.0], [0.0; 3], [0.0; 3]).unwrap();
     let floor = task.score(env.world(), 10);
     assert!(floor.terminated && floor.reward < held.reward && floor.terms[GOAL] < held.terms[GOAL]);
@@ -289,4 +306,53 @@ fn mocap_variants_parse_and_build_where_the_mocap_is() {
         let out = task.score(env.world(), f);
         assert!(out.terms[0] > 0.999 && !out.terminated, "{spec}: {:?}", out.terms);
     }
+}
+
+#[test]
+fn the_steering_carry_observes_its_target_and_is_paid_for_heading_to_it() {
+    let straight = setup("carry.ron");
+    let s = setup("carry_to.ron");
+    assert_eq!(s.spec.spec.name, "carry", "carry_to.ron trains the library's carry");
+    let mut env = s.env();
+    assert_eq!(env.obs_dim(), straight.env().obs_dim() + 3, "the target's [sin ψ, cos ψ, distance]");
+    let mut task = ImitationTask::new(s.settings.clone());
+    // Frame 10 of the walk, at the origin facing +x, moving at the clip's pace.
+    let score_with_target = |task: &mut ImitationTask, env: &mut repertoire_skill::SkillEnv, t: [f64; 2]| {
+        task.place_at_frame(env.world_mut(), 10, 0.0, 0.0, 0.0);
+        task.set_target(t, env.world());
+        task.score(env.world(), 10)
+    };
+    let ahead = score_with_target(&mut task, &mut env, [3.0, 0.0]);
+    let behind = score_with_target(&mut task, &mut env, [-3.0, 0.0]);
+    let side = score_with_target(&mut task, &mut env, [0.0, 3.0]);
+    assert!(!ahead.terminated && ahead.terms[OBJECT] > 0.5, "{:?}", ahead.terms);
+    assert!(
+        ahead.terms[GOAL] > side.terms[GOAL] && side.terms[GOAL] > behind.terms[GOAL],
+        "the goal pays for heading to the target: ahead {} side {} behind {}",
+        ahead.terms[GOAL],
+        side.terms[GOAL],
+        behind.terms[GOAL]
+    );
+    // Arriving pays the steering part in full and draws the next target 1.5–4 m away.
+    let arrived = score_with_target(&mut task, &mut env, [0.2, 0.0]);
+    assert_eq!(task.reached, 1);
+    assert!(arrived.terms[GOAL] > ahead.terms[GOAL]);
+    let p = env.world().pelvis_frame().pos;
+    let next = task.target();
+    let d = ((next[0] - p[0]).powi(2) + (next[1] - p[1]).powi(2)).sqrt();
+    assert!((1.4..4.1).contains(&d), "the next target is {d:.2} m away");
+}
+
+#[test]
+fn a_skill_is_refused_by_a_spec_whose_goal_gives_it_other_inputs() {
+    let lib = temp("steer-lib");
+    let s = setup("carry.ron");
+    train(&s, &TrainOptions::quick(&lib, &lib.join("run"), 1, 2, 3)).expect("a one-iteration carry trains");
+    let mut skill = library::load(&lib, "carry").expect("saved");
+    let steer = SkillSetup::new(SpecFile::load(&specs().join("carry_to.ron")).unwrap(), &lib).unwrap();
+    let err =
+        repertoire_skill::eval::evaluate(&steer, &mut skill, repertoire_skill::eval::StartFrom::ClipStart, 2, 2, 1)
+            .expect_err("a straight carry does not fit the steering spec")
+            .to_string();
+    assert!(err.contains("manifest.ron") && err.contains("carry_to.ron") && err.contains("--warm-start"), "{err}");
 }
