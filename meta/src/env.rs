@@ -568,6 +568,9 @@ impl Env for MetaEnv {
             let zones = self.setup.zones.read().expect("the zone list is never poisoned");
             zones[rng.random_range(0..zones.len())].clone()
         };
+        // Hands open until a skill plays (each tick sets its own level), not the level the last
+        // episode ended with.
+        self.world.set_grip(0.0);
         self.start = self.world.reset_in_zone(&zone, rng).expect("zones come from the scenario");
         if let Some((lx, ly, turn)) = self.over.start {
             let f = self.world.placements()[self.setup.task.frame_prop()];

@@ -187,3 +187,32 @@ fn bind_entries_no_skill_reads_are_found() {
     let bind = &typo.scenario.scenario.bind;
     assert_eq!(repertoire_meta::bind::unused_bindings(bind, &observed), vec!["pedestral"]);
 }
+
+#[test]
+fn each_skill_plays_with_its_own_grip_and_episodes_start_with_open_hands() {
+    // The warehouse with the library's carry listed (it grips; the other skills let go).
+    let skills = r#"skills: ["walk", "turn_left", "turn_right", "lift", "put_down"]"#;
+    let model = warehouse_with("warehouse-carry.ron", |t| {
+        assert!(t.contains(skills), "scenes/warehouse.ron no longer lists {skills}");
+        t.replace(skills, r#"skills: ["walk", "turn_left", "turn_right", "lift", "carry", "put_down"]"#)
+    });
+    let s = setup(model);
+    let (carry, walk, lift) = (skill(&s, "carry"), skill(&s, "walk"), skill(&s, "lift"));
+    assert_eq!((s.skills[carry].grip, s.skills[walk].grip, s.skills[lift].grip), (1.0, 0.0, 0.0));
+    assert!(s.skills[carry].uses_target, "the library's carry steers to the controller's target");
+    let mut env = MetaEnv::new(Arc::clone(&s));
+    let mut obs = vec![0.0; env.obs_dim()];
+    env.set_override(EpisodeOverride { phase: Some(WarehousePhase::Carry), ..Default::default() });
+    env.reset(&mut EnvRng::seed_from_u64(5), &mut obs);
+    assert!(env.world().has_grip());
+    assert_eq!(env.world().grip(), 0.0);
+    env.step(&[carry as f32, 0.0, 0.0], &mut obs);
+    assert_eq!(env.world().grip(), 1.0, "carry grips while it plays");
+    let snap = env.snapshot();
+    env.reset(&mut EnvRng::seed_from_u64(6), &mut obs);
+    assert_eq!(env.world().grip(), 0.0, "a new episode starts with open hands");
+    env.restore(&snap).expect("restore");
+    assert_eq!(env.world().grip(), 1.0, "a snapshot carries the grip");
+    env.step(&[walk as f32, 0.0, 0.0], &mut obs);
+    assert_eq!(env.world().grip(), 0.0, "walk lets go");
+}
