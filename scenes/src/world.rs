@@ -214,7 +214,8 @@ pub struct World {
     /// The integration state ([`BEFORE_LAST`]) before the last substep of the last step, so a
     /// snapshot can be restored with the same derived quantities (see [`World::restore`]).
     before_last: Vec<f64>,
-    /// The hands' grip level in [0, 1], written to the grip actuators at every step.
+    /// The hands' grip level in [0, 1]: what [`World::set_grip`] wrote to the grip actuators'
+    /// controls, kept to write again after MuJoCo's reset zeroes them.
     grip: f64,
 }
 
@@ -757,9 +758,6 @@ impl World {
         let ctrl = self.data.ctrl_mut();
         for (j, &a) in joints.iter().zip(action) {
             ctrl[j.actuator] = a.clamp(j.ctrl_range[0], j.ctrl_range[1]);
-        }
-        for &g in &self.shared.index.grip {
-            ctrl[g] = self.grip;
         }
         for i in 0..self.shared.substeps {
             if i + 1 == self.shared.substeps {
