@@ -28,7 +28,7 @@ fn meta_commands_name_the_missing_warehouse_and_toss_skills() {
     }
     let lib = lib.display().to_string();
     for (file, missing) in [
-        ("scenes/warehouse.ron", "turn_left, turn_right, lift, put_down"),
+        ("scenes/warehouse.ron", "turn_left, turn_right, lift, carry, put_down"),
         ("scenes/toss.ron", "turn_left, turn_right, catch, put_down"),
     ] {
         for cmd in ["train", "eval"] {

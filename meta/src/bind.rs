@@ -45,7 +45,7 @@ impl SkillProps {
         let bind = &file.scenario.bind;
         let mut slots = Vec::new();
         for f in features {
-            let (Feature::PropPose(name) | Feature::PropVelocity(name)) = f else { continue };
+            let (Feature::PropPose(name) | Feature::PropVelocity(name) | Feature::PropSize(name)) = f else { continue };
             let slot = match bind.get(name) {
                 Some(PropBinding::Prop(other)) => model.prop_id(other).map(BoundProp::Prop),
                 Some(PropBinding::Focal) => task.focal_home().map(|_| BoundProp::Focal),
@@ -110,11 +110,11 @@ impl SkillProps {
     }
 }
 
-/// The prop names a skill's observation reads (its `PropPose` and `PropVelocity` features), in
+/// The prop names a skill's observation reads (its `PropPose`, `PropVelocity` and `PropSize` features), in
 /// feature order.
 pub fn observed_props(features: &[Feature]) -> impl Iterator<Item = &str> {
     features.iter().filter_map(|f| match f {
-        Feature::PropPose(p) | Feature::PropVelocity(p) => Some(p.as_str()),
+        Feature::PropPose(p) | Feature::PropVelocity(p) | Feature::PropSize(p) => Some(p.as_str()),
         _ => None,
     })
 }

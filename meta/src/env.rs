@@ -28,6 +28,7 @@ use repertoire_humanoid::ActionMap;
 use repertoire_learn::acting::ActingPolicy;
 use repertoire_learn::env::{Env, EnvRng, MAX_TERMS, StepOutcome};
 use repertoire_scenes::math::wrap_angle;
+use repertoire_scenes::scenario::{PropBinding, WarehousePhase};
 use repertoire_scenes::{
     Annotation, Feature, ObservationLayout, RecordOptions, Recorder, Recording, World, WorldModel,
 };
@@ -44,6 +45,15 @@ use crate::task::{EpisodeOverride, TaskSpec, TaskState};
 /// Names of the sitting task's per-episode figures in [`StepOutcome::terms`] (reported on the
 /// last step); other tasks name theirs in [`TaskSpec::term_names`].
 pub const TERM_NAMES: [&str; 5] = crate::task::SIT_TERMS;
+
+/// The prop a skill's guard measures from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum GuardProp {
+    /// A prop of the scene.
+    Prop(usize),
+    /// The warehouse's focal pedestal at the decision.
+    Focal,
+}
 
 /// One skill as the meta-controller runs it.
 #[derive(Debug, Clone)]
@@ -73,9 +83,9 @@ pub struct MetaSkill {
     /// clip record, empty when it has none): choosing the skill picks the cycle up at the frame
     /// nearest the character's pose instead of its first frame.
     pub cycle: (Vec<f32>, Vec<f32>),
-    /// The scenario's precondition on switching to it (`skill_graph.guards`): the prop index
-    /// and the largest pelvis–prop distance (m) at which it may be chosen.
-    pub guard: Option<(usize, f64)>,
+    /// The scenario's precondition on switching to it (`skill_graph.guards`): the prop and the
+    /// largest pelvis–prop distance (m) at which it may be chosen.
+    pub guard: Option<(GuardProp, f64)>,
     /// The hands' grip level while it plays (its spec's `grip`).
     pub grip: f64,
 }
@@ -185,6 +195,10 @@ pub struct MetaSetup {
     /// Where episodes start: mid-motion in a start skill's successful end states (its
     /// `end_poses.ron`), so the first skill runs from a state it knows; `None`: standing still.
     pub start_pool: Option<(usize, Pool)>,
+    /// The option of the warehouse's `hold_from` skill (lift), when the graph has it: a CARRY
+    /// or PUTDOWN episode starts in that skill's end states, so it starts as if that skill had
+    /// just played (the graph's successors of it are what may follow).
+    pub hold_skill: Option<usize>,
 }
 
 impl MetaSetup {
@@ -192,7 +206,7 @@ impl MetaSetup {
     /// loaded from `library`. Skills the library lacks are named in the error.
     pub fn new(model: Arc<WorldModel>, library: &Path, graph: SkillGraph) -> Result<Self> {
         let sc = model.scenario.scenario.clone();
-        let task = TaskSpec::of(&model)?;
+        let mut task = TaskSpec::of(&model)?;
         if sc.spawn.is_empty() {
             return Err(MetaError::Invalid(format!(
                 "{}: the meta-controller needs at least one spawn zone (`spawn: [Zone(...)]`)",
@@ -226,6 +240,7 @@ impl MetaSetup {
                 if have.is_empty() { "none".to_string() } else { have.join(", ") }
             )));
         }
+        task.load_from_library(&model, library)?;
         let mut skills = Vec::new();
         let mut start_pool = None;
         let mut observed: Vec<String> = Vec::new();
@@ -242,12 +257,17 @@ impl MetaSetup {
             observed.extend(crate::bind::observed_props(&s.manifest.observation.features).map(String::from));
             s.check_fits_layout(&model, &layout)?;
             let uses_target = s.manifest.spec.goal.steering().is_some();
-            let guard = sc
-                .skill_graph
-                .iter()
-                .flat_map(|g| &g.guards)
-                .find(|g| g.skill == name)
-                .map(|g| (model.prop_id(&g.near).expect("guards are validated with the scenario"), g.within_m));
+            let guard = sc.skill_graph.iter().flat_map(|g| &g.guards).find(|g| g.skill == name).map(|g| {
+                let prop = match (model.prop_id(&g.near), sc.bind.get(&g.near)) {
+                    (Some(p), _) => GuardProp::Prop(p),
+                    (None, Some(PropBinding::Prop(other))) => {
+                        GuardProp::Prop(model.prop_id(other).expect("bindings are validated with the scenario"))
+                    }
+                    (None, Some(PropBinding::Focal)) => GuardProp::Focal,
+                    (None, None) => unreachable!("guards are validated with the scenario"),
+                };
+                (prop, g.within_m)
+            });
             skills.push(MetaSkill {
                 name: name.to_string(),
                 frames: s.manifest.clip.frames,
@@ -272,6 +292,10 @@ impl MetaSetup {
                 if observed.is_empty() { "no props".to_string() } else { observed.join(", ") }
             );
         }
+        let hold_skill = match &task {
+            TaskSpec::Warehouse(w) => w.hold_from.as_deref().and_then(|name| graph.index(name)),
+            _ => None,
+        };
         let mut features = Feature::proprioception();
         features.extend(task.features(&model));
         let layout = ObservationLayout::new(&model, &features)?;
@@ -289,6 +313,7 @@ impl MetaSetup {
             ticks,
             zones: Arc::new(RwLock::new(zones)),
             start_pool,
+            hold_skill,
         })
     }
 
@@ -448,6 +473,13 @@ impl MetaEnv {
             if !mask[k] || self.current == Some(k) {
                 continue;
             }
+            let prop = match prop {
+                GuardProp::Prop(p) => p,
+                GuardProp::Focal => match self.task.focal_prop(&self.setup.task) {
+                    Some(p) => p,
+                    None => continue,
+                },
+            };
             let d = self.world.prop_relative(prop);
             if d[0].hypot(d[1]) > within {
                 mask[k] = false;
@@ -591,6 +623,16 @@ impl Env for MetaEnv {
         if moved {
             let f = self.world.pelvis_frame();
             self.start = (f.pos[0], f.pos[1], f.yaw());
+            // Placed in the hold_from skill's end states: that skill has just played to its end.
+            if let (Some(k), TaskSpec::Warehouse(w), TaskState::Warehouse(j)) =
+                (self.setup.hold_skill, &self.setup.task, &self.task)
+                && w.hold_pool.is_some()
+                && matches!(j.start_phase, WarehousePhase::Carry | WarehousePhase::PutDown)
+            {
+                self.current = Some(k);
+                self.phase = self.setup.skills[k].frames.saturating_sub(1);
+                self.chosen.push(k);
+            }
         }
         if let Some((k, pool)) = self.setup.start_pool.as_ref().filter(|_| !moved) {
             let state = &pool.states[rng.random_range(0..pool.states.len())];

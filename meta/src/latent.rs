@@ -69,7 +69,8 @@ impl LatentSetup {
     /// of the scenario's first start skill found in `library` (when it has them).
     pub fn new(model: Arc<WorldModel>, latent_dir: &Path, library: &Path, hold: usize) -> Result<Self> {
         let sc = model.scenario.scenario.clone();
-        let task = TaskSpec::of(&model)?;
+        let mut task = TaskSpec::of(&model)?;
+        task.load_from_library(&model, library)?;
         if sc.spawn.is_empty() {
             return Err(MetaError::Invalid(format!(
                 "{}: the latent high level needs at least one spawn zone (`spawn: [Zone(...)]`)",

@@ -12,7 +12,7 @@ use repertoire_skill::reference::to_heading;
 use crate::error::{MetaError, Result};
 use crate::judge::SitJudge;
 use crate::toss::{TossFacts, TossJudge, TossSpec, ball_velocity};
-use crate::warehouse::{WarehouseFacts, WarehouseJudge, WarehouseSpec, place_holding};
+use crate::warehouse::{WarehouseFacts, WarehouseJudge, WarehouseSpec, place_from_pool, place_holding};
 
 /// Names of the sitting task's per-episode figures in `StepOutcome::terms`.
 pub const SIT_TERMS: [&str; 5] = ["success", "min_distance", "fell", "seconds", "switches"];
@@ -86,6 +86,15 @@ impl TaskSpec {
                 "{}: the meta-controller needs a Sit, Warehouse or Toss task, found Free",
                 sc.path.display()
             ))),
+        }
+    }
+
+    /// Reads what the task takes from the skill library: the warehouse's `hold_from` end
+    /// states ([`WarehouseSpec::load_hold_pool`]).
+    pub fn load_from_library(&mut self, model: &WorldModel, library: &std::path::Path) -> Result<()> {
+        match self {
+            TaskSpec::Warehouse(w) => w.load_hold_pool(model, library),
+            _ => Ok(()),
         }
     }
 
@@ -268,10 +277,15 @@ impl TaskState {
                 world.place_standing(x, y, yaw);
                 Ok(())
             }
-            WarehousePhase::Carry => place_holding(world, w.box_prop, start.0, start.1, start.2),
-            WarehousePhase::PutDown => {
-                let (x, y, yaw) = near(world, target, PUTDOWN_START_M, rng);
-                place_holding(world, w.box_prop, x, y, yaw)
+            WarehousePhase::Carry | WarehousePhase::PutDown => {
+                let (x, y, yaw) = match phase {
+                    WarehousePhase::Carry => start,
+                    _ => near(world, target, PUTDOWN_START_M, rng),
+                };
+                match &w.hold_pool {
+                    Some(pool) => place_from_pool(world, pool, w.box_prop, x, y, yaw, rng),
+                    None => place_holding(world, w.box_prop, x, y, yaw),
+                }
             }
         };
         match placed {

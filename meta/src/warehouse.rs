@@ -13,7 +13,14 @@
 
 use repertoire_scenes::compose::yaw_quat;
 use repertoire_scenes::scenario::{Prop, Warehouse, WarehousePhase};
+use std::path::Path;
+use std::sync::Arc;
+
+use rand::Rng;
 use repertoire_scenes::{World, WorldModel};
+use repertoire_skill::imitation::{HOLD_FIT_TOLERANCE_M, HOLD_SQUEEZE_M};
+use repertoire_skill::library;
+use repertoire_skill::pool::Pool;
 
 use crate::error::{MetaError, Result};
 
@@ -34,6 +41,10 @@ pub struct WarehouseSpec {
     pub start_phases: Vec<WarehousePhase>,
     /// The box's full edge lengths before its per-episode scale (m).
     pub box_size: (f64, f64, f64),
+    /// The scenario's `hold_from` skill and, once [`WarehouseSpec::load_hold_pool`] read it
+    /// from a library, its end states: where CARRY and PUTDOWN episodes start.
+    pub hold_from: Option<String>,
+    pub hold_pool: Option<Arc<Pool>>,
 }
 
 impl WarehouseSpec {
@@ -67,7 +78,43 @@ impl WarehouseSpec {
             rest_contacts: task.rest_contacts,
             start_phases: task.start_phases.clone(),
             box_size: b.size,
+            hold_from: task.hold_from.clone(),
+            hold_pool: None,
         })
+    }
+
+    /// Reads the end states of the scenario's `hold_from` skill from `library` (nothing to do
+    /// without one). A pool that is missing, empty or recorded on another body is an error
+    /// naming the file.
+    pub fn load_hold_pool(&mut self, model: &WorldModel, library: &Path) -> Result<()> {
+        let Some(skill) = &self.hold_from else { return Ok(()) };
+        let path = library::skill_dir(library, skill).join("end_poses.ron");
+        let scenario = model.scenario.path.display();
+        if !path.exists() {
+            return Err(MetaError::Invalid(format!(
+                "{scenario}: hold_from names skill `{skill}`, but {} does not exist; `repertoire skill eval` of \
+                 `{skill}` records its successful end states there",
+                path.display()
+            )));
+        }
+        let pool = Pool::load(&path)?;
+        if pool.states.is_empty() {
+            return Err(MetaError::Invalid(format!(
+                "{scenario}: hold_from's pool {} holds no states (`{skill}` succeeded in none of the trials that \
+                 recorded it)",
+                path.display()
+            )));
+        }
+        if pool.body_hash != model.body.content_hash() {
+            return Err(MetaError::Invalid(format!(
+                "{scenario}: hold_from's pool {} was recorded on body {}, this scenario's body is {}",
+                path.display(),
+                pool.body_hash,
+                model.body.content_hash()
+            )));
+        }
+        self.hold_pool = Some(Arc::new(pool));
+        Ok(())
     }
 }
 
@@ -232,10 +279,8 @@ impl WarehouseJudge {
     }
 }
 
-/// How far the hands squeeze into the box when it is put into them (m).
-const SQUEEZE_M: f64 = 0.015;
 /// How far the hands' gap may be from the wanted one (m).
-const GAP_TOLERANCE_M: f64 = 0.01;
+const GAP_TOLERANCE_M: f64 = HOLD_FIT_TOLERANCE_M;
 
 /// The arm joints the holding pose moves, per side (left, right): the built-in humanoid's
 /// `<side>_shoulder_y`, `<side>_shoulder_z` and `<side>_elbow` (indices into the body's joints).
@@ -263,6 +308,50 @@ pub fn holding_joints(model: &WorldModel) -> Result<[[usize; 3]; 2]> {
     Ok(arms)
 }
 
+/// This episode's depth and width (m) of box or ball `b` (its x and y edges, or its diameter).
+fn box_extent(world: &World, b: usize) -> Result<(f64, f64)> {
+    let scale = world.placements().get(b).map_or(1.0, |p| p.scale);
+    match world.model().scenario.scenario.props.get(b) {
+        Some(Prop::Box(spec)) => Ok((spec.size.0 * scale, spec.size.1 * scale)),
+        Some(Prop::Ball(ball)) => Ok((2.0 * ball.radius * scale, 2.0 * ball.radius * scale)),
+        _ => Err(MetaError::Invalid(format!("prop {b} is not a box or a ball"))),
+    }
+}
+
+fn box_width(world: &World, b: usize) -> Result<f64> {
+    box_extent(world, b).map(|(_, w)| w)
+}
+
+/// Stands the character at `(x, y)` facing `yaw` in one of `pool`'s states (drawn with `rng`),
+/// keeping its motion, with box `b` between its hands, turned the way the hands face each other
+/// and moving as the pelvis does.
+pub fn place_from_pool(
+    world: &mut World,
+    pool: &Pool,
+    b: usize,
+    x: f64,
+    y: f64,
+    yaw: f64,
+    rng: &mut impl Rng,
+) -> Result<()> {
+    let state = &pool.states[rng.random_range(0..pool.states.len())];
+    state.apply(world, x, y, yaw).map_err(|e| MetaError::Invalid(format!("a hold_from state: {e}")))?;
+    let width = box_width(world, b)?;
+    let want = width - 2.0 * HOLD_SQUEEZE_M;
+    if (world.hand_gap() - want).abs() > HOLD_FIT_TOLERANCE_M {
+        world.fit_hand_gap(want);
+    }
+    let idx = &world.model().index;
+    let (l, r) = (world.body_position(idx.hands[0]), world.body_position(idx.hands[1]));
+    let centre = [(l[0] + r[0]) / 2.0, (l[1] + r[1]) / 2.0, (l[2] + r[2]) / 2.0];
+    let box_yaw = (-(l[0] - r[0])).atan2(l[1] - r[1]);
+    let (s, c) = yaw.sin_cos();
+    let v = state.velocity;
+    let velocity = [c * v[0] - s * v[1], s * v[0] + c * v[1], v[2]];
+    world.set_free_prop(b, centre, yaw_quat(box_yaw.to_degrees()), velocity, [0.0; 3])?;
+    Ok(())
+}
+
 /// Stands the character at `(x, y)` facing `yaw` (radians) with its arms forward and free prop
 /// `b` (a box or a ball) held between its hands, both touching it, everything at rest: the start
 /// of a CARRY or PUTDOWN phase, a caught ball. The arm pose is searched over the shoulder twist and the elbow so
@@ -271,12 +360,7 @@ pub fn holding_joints(model: &WorldModel) -> Result<[[usize; 3]; 2]> {
 /// this when its scenario loads), or a box no pose fits, are an error.
 pub fn place_holding(world: &mut World, b: usize, x: f64, y: f64, yaw: f64) -> Result<()> {
     let model = std::sync::Arc::clone(world.model());
-    let scale = world.placements().get(b).map_or(1.0, |p| p.scale);
-    let (depth, width) = match model.scenario.scenario.props.get(b) {
-        Some(Prop::Box(spec)) => (spec.size.0 * scale, spec.size.1 * scale),
-        Some(Prop::Ball(ball)) => (2.0 * ball.radius * scale, 2.0 * ball.radius * scale),
-        _ => return Err(MetaError::Invalid(format!("place_holding: prop {b} is not a box or a ball"))),
-    };
+    let (depth, width) = box_extent(world, b)?;
     let idx = &model.index;
     let arm = holding_joints(&model)?;
     let mj = model.mj_model();
@@ -291,7 +375,7 @@ pub fn place_holding(world: &mut World, b: usize, x: f64, y: f64, yaw: f64) -> R
     let root = [x, y, standing[idx.root_qpos + 2]];
     let quat = yaw_quat(yaw.to_degrees());
     let mut pose: Vec<f64> = idx.joints.iter().map(|j| standing[j.qpos]).collect();
-    let want = width - 2.0 * SQUEEZE_M;
+    let want = width - 2.0 * HOLD_SQUEEZE_M;
     let (s, c) = yaw.sin_cos();
     // The hands' gap error of one arm pose (None when the hands are not level and in front).
     let mut try_pose = |world: &mut World, lift: f64, twist: f64, elbow: f64| -> Result<Option<(f64, Vec<f64>)>> {

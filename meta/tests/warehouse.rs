@@ -195,10 +195,12 @@ fn the_judge_runs_the_phases_in_order_with_one_reward_each_and_swaps_pedestals()
 /// The shipped warehouse with only the committed walk and turn skills.
 fn walking_setup(start_phases: &str) -> Arc<MetaSetup> {
     let text = std::fs::read_to_string(root().join("scenes/warehouse.ron")).unwrap();
-    let skills = r#"skills: ["walk", "turn_left", "turn_right", "lift", "put_down"]"#;
+    let skills = r#"skills: ["walk", "turn_left", "turn_right", "lift", "carry", "put_down"]"#;
     assert!(text.contains(skills), "scenes/warehouse.ron no longer lists {skills}");
     let text = text
         .replace(skills, r#"skills: ["walk", "turn_left", "turn_right"]"#)
+        .replace(&graph_block(&text), "")
+        .replace("        hold_from: \"lift\",\n", "")
         .replace("start_phases: [Goto, Lift, Carry, PutDown]", &format!("start_phases: [{start_phases}]"));
     let file = ScenarioFile::parse(&root().join("scenes/warehouse-walk.ron"), text).expect("variant");
     let model = Arc::new(WorldModel::build(file).unwrap());
@@ -290,7 +292,7 @@ fn a_library_without_the_warehouse_skills_is_refused_naming_them() {
     let model = Arc::new(WorldModel::build(file).unwrap());
     let graph = SkillGraph::of(&model.scenario.scenario);
     let err = MetaSetup::new(model, &lib, graph).err().expect("skills are missing").to_string();
-    assert!(err.contains("warehouse.ron") && err.contains("turn_left, turn_right, lift, put_down"), "{err}");
+    assert!(err.contains("warehouse.ron") && err.contains("turn_left, turn_right, lift, carry, put_down"), "{err}");
     assert!(err.contains("(it has: walk)") && err.contains("--skills"), "{err}");
     let _ = std::fs::remove_dir_all(&lib);
 }
@@ -336,4 +338,100 @@ fn a_body_without_the_humanoid_arm_joints_cannot_start_holding_the_box() {
     let model = WorldModel::build(ScenarioFile::parse(&dir.join("warehouse.ron"), text).unwrap()).unwrap();
     assert!(matches!(TaskSpec::of(&model), Ok(TaskSpec::Warehouse(_))));
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The warehouse with `hold_from: "lift"` (CARRY and PUTDOWN start in lift's end states),
+/// episodes starting in `start_phases`, over the committed library.
+fn holding_setup(start_phases: &str, library: &Path) -> Result<Arc<MetaSetup>, repertoire_meta::MetaError> {
+    let text = std::fs::read_to_string(root().join("scenes/warehouse.ron")).unwrap();
+    let phases = "start_phases: [Goto, Lift, Carry, PutDown],";
+    assert!(text.contains(phases), "scenes/warehouse.ron no longer holds {phases}");
+    let text = text
+        .replace("        hold_from: \"lift\",\n", "")
+        .replace(phases, &format!("start_phases: [{start_phases}],\n        hold_from: \"lift\","));
+    let file = ScenarioFile::parse(&root().join("scenes/warehouse-hold.ron"), text).expect("variant");
+    let model = Arc::new(WorldModel::build(file).unwrap());
+    let graph = SkillGraph::of(&model.scenario.scenario);
+    MetaSetup::new(model, library, graph).map(Arc::new)
+}
+
+#[test]
+fn carry_and_putdown_can_start_in_lifts_end_states_with_the_box_fitted_between_the_hands() {
+    let lib = root().join("skills/library");
+    let s = holding_setup("Carry, PutDown", &lib).expect("the committed library has lift's end states");
+    let TaskSpec::Warehouse(w) = &s.task else { panic!() };
+    let pool = w.hold_pool.clone().expect("hold_from's pool is loaded");
+    let mut env = MetaEnv::new(Arc::clone(&s));
+    let mut rng = EnvRng::seed_from_u64(21);
+    let mut obs = vec![0.0; env.obs_dim()];
+    let idx = &s.model.index;
+    // The arm joints the fit may turn; every other joint is the pool state's.
+    let arms: Vec<usize> = idx
+        .joints
+        .iter()
+        .enumerate()
+        .filter(|(_, j)| j.name.ends_with("_shoulder_x") || j.name.ends_with("_shoulder_z"))
+        .map(|(k, _)| k)
+        .collect();
+    let mut seen = std::collections::HashSet::new();
+    for _ in 0..16 {
+        env.reset(&mut rng, &mut obs);
+        let TaskState::Warehouse(j) = env.task().clone() else { panic!() };
+        seen.insert(j.phase);
+        let world = env.world();
+        let facts = WarehouseFacts::measure(world, w, j.source, j.target);
+        assert!(facts.phase_done(WarehousePhase::Lift, w), "{:?}: the box is held off its pedestal {facts:?}", j.phase);
+        let q = hold(world);
+        let from_pool = pool.states.iter().any(|st| {
+            q.iter().zip(&st.joints).enumerate().all(|(k, (a, b))| arms.contains(&k) || (a - b).abs() < 1e-9)
+        });
+        assert!(from_pool, "{:?}: the body stands in one of lift's end states", j.phase);
+        let width = 0.3 * world.placements()[w.box_prop].scale;
+        let want = width - 2.0 * repertoire_skill::imitation::HOLD_SQUEEZE_M;
+        assert!(
+            (world.hand_gap() - want).abs() <= repertoire_skill::imitation::HOLD_FIT_TOLERANCE_M + 1e-9,
+            "hands {:.3} m apart round a {width:.3} m box",
+            world.hand_gap()
+        );
+        if j.phase == WarehousePhase::PutDown {
+            assert!(facts.to_target_m < 1.0, "PUTDOWN starts by the target pedestal ({:.2} m)", facts.to_target_m);
+        }
+        // As if lift had just played: the scenario's graph lets only lift's successors follow,
+        // and put_down's guard only within 1 m of the focal pedestal (the target's, here).
+        let mut mask = vec![false; s.skills.len()];
+        env.allowed_now(&mut mask);
+        let allowed: Vec<&str> =
+            s.skills.iter().zip(&mask).filter(|(_, m)| **m).map(|(k, _)| k.name.as_str()).collect();
+        if facts.to_target_m > 1.0 {
+            assert_eq!(allowed, ["lift", "carry"], "{:?}", j.phase);
+        } else {
+            assert_eq!(allowed, ["lift", "carry", "put_down"], "{:?}", j.phase);
+        }
+    }
+    assert_eq!(seen.len(), 2, "both phases drawn: {seen:?}");
+
+    // A library whose lift has no end states: refused, naming the file that is missing.
+    let bare = std::env::temp_dir().join(format!("repertoire-no-lift-pool-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&bare);
+    for skill in ["walk", "turn_left", "turn_right", "lift", "carry", "put_down"] {
+        std::fs::create_dir_all(bare.join(skill)).unwrap();
+        for f in std::fs::read_dir(lib.join(skill)).unwrap() {
+            let f = f.unwrap().path();
+            if f.is_file() && !(skill == "lift" && f.ends_with("end_poses.ron")) {
+                std::fs::copy(&f, bare.join(skill).join(f.file_name().unwrap())).unwrap();
+            }
+        }
+    }
+    let err = holding_setup("Carry", &bare).err().expect("lift's pool is missing").to_string();
+    assert!(err.contains("warehouse-hold.ron") && err.contains("hold_from"), "{err}");
+    assert!(err.contains(&bare.join("lift").join("end_poses.ron").display().to_string()), "{err}");
+    let _ = std::fs::remove_dir_all(&bare);
+}
+
+/// The scenario's `skill_graph: ( … ),` block (empty when it has none): variants over fewer
+/// skills drop it, since it names skills they leave out.
+fn graph_block(text: &str) -> String {
+    let Some(start) = text.find("    skill_graph: (") else { return String::new() };
+    let end = start + text[start..].find("\n    ),\n").expect("the graph block closes") + "\n    ),\n".len();
+    text[start..end].to_string()
 }

@@ -30,6 +30,9 @@ pub enum Feature {
     /// A prop's linear velocity relative to the pelvis's, in the heading frame (m/s; forward,
     /// left, up): a ball in flight. Fixed props move with nothing, so theirs is minus the pelvis's.
     PropVelocity(String),
+    /// A box's or ball's size this episode (m): its three edge lengths, or its diameter three
+    /// times, after the scenario's per-episode scale. What a hand must close round.
+    PropSize(String),
 }
 
 impl Feature {
@@ -45,6 +48,7 @@ impl Feature {
             Feature::FootContacts => "foot_contacts".into(),
             Feature::PropPose(p) => format!("prop_pose:{p}"),
             Feature::PropVelocity(p) => format!("prop_velocity:{p}"),
+            Feature::PropSize(p) => format!("prop_size:{p}"),
         }
     }
 
@@ -118,13 +122,21 @@ impl ObservationLayout {
                 Feature::RootVelocity | Feature::RootAngularVelocity => 3,
                 Feature::PitchRoll => 2,
                 Feature::FootContacts => model.index.foot_touch.len(),
-                Feature::PropPose(name) | Feature::PropVelocity(name) => {
+                Feature::PropPose(name) | Feature::PropVelocity(name) | Feature::PropSize(name) => {
                     let id = resolve(f, name)?;
                     if id >= model.props.len() {
                         return Err(SceneError::Usage(format!(
                             "observation feature {}: prop index {id} is out of range ({} props)",
                             f.name(),
                             model.props.len()
+                        )));
+                    }
+                    if matches!(f, Feature::PropSize(_)) && !model.scenario.scenario.props[id].is_free() {
+                        return Err(SceneError::Usage(format!(
+                            "observation feature {}: prop `{}` is a {}; only a box's or a ball's size is observed",
+                            f.name(),
+                            model.props[id].name,
+                            model.scenario.scenario.props[id].kind()
                         )));
                     }
                     prop_ids.push(id);
@@ -146,7 +158,7 @@ impl ObservationLayout {
     /// [`World::observe_props`] fills).
     pub fn prop_names(&self) -> impl Iterator<Item = &str> {
         self.features.iter().filter_map(|f| match f {
-            Feature::PropPose(n) | Feature::PropVelocity(n) => Some(n.as_str()),
+            Feature::PropPose(n) | Feature::PropVelocity(n) | Feature::PropSize(n) => Some(n.as_str()),
             _ => None,
         })
     }
@@ -245,6 +257,12 @@ impl World {
                 Feature::PropVelocity(_) => {
                     let id = *props.next().expect("one id per prop feature");
                     for (o, v) in dst.iter_mut().zip(self.prop_velocity_relative(id)) {
+                        *o = v as f32;
+                    }
+                }
+                Feature::PropSize(_) => {
+                    let id = *props.next().expect("one id per prop feature");
+                    for (o, v) in dst.iter_mut().zip(self.prop_extent(id)) {
                         *o = v as f32;
                     }
                 }

@@ -114,7 +114,8 @@ pub struct SkillGraphSpec {
 }
 
 /// A precondition on switching to `skill`: the pelvis within `within_m` (horizontally) of the
-/// prop `near`'s centre. `(skill: "sit", near: "chair", within_m: 0.9)` keeps a controller from
+/// prop `near`'s centre (a prop of the scenario, or a name its `bind` map binds: `"pedestal"`
+/// bound to `Focal` is the warehouse's focal pedestal at the decision). `(skill: "sit", near: "chair", within_m: 0.9)` keeps a controller from
 /// starting a sit a metre or more from the chair, which no sit absorbs.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -626,6 +627,13 @@ pub struct Warehouse {
     /// Episode length in seconds.
     #[serde(default = "Warehouse::default_limit")]
     pub time_limit_s: f64,
+    /// A skill whose successful end states (its library folder's `end_poses.ron`, written by
+    /// `skill eval`) start CARRY and PUTDOWN episodes, the box put between the hands: the
+    /// states the character is in after that skill (lift), so the skill that follows starts
+    /// from what it was fine-tuned on. `None`: a standing pose with the arms fitted round the
+    /// box.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub hold_from: Option<String>,
 }
 
 impl Warehouse {
@@ -1018,11 +1026,11 @@ impl ScenarioFile {
                     return Err(self
                         .invalid(Some(&guard.skill), format!("skill `{}` has two guards; give it one", guard.skill)));
                 }
-                if !s.props.iter().any(|p| p.name() == guard.near) {
+                if !s.props.iter().any(|p| p.name() == guard.near) && !s.bind.contains_key(&guard.near) {
                     return Err(self.invalid(
                         Some(&guard.near),
                         format!(
-                            "the guard on `{}` names prop `{}`, which the scenario does not have",
+                            "the guard on `{}` names prop `{}`, which the scenario neither has nor binds",
                             guard.skill, guard.near
                         ),
                     ));
@@ -1146,6 +1154,17 @@ impl ScenarioFile {
         }
         if !(w.time_limit_s > 0.0 && w.time_limit_s.is_finite()) {
             return Err(self.invalid(Some("time_limit_s"), "time_limit_s must be positive"));
+        }
+        if let Some(skill) = &w.hold_from
+            && !self.scenario.skills.iter().any(|s| s == skill)
+        {
+            return Err(self.invalid(
+                Some("hold_from"),
+                format!(
+                    "hold_from names skill `{skill}`, which `skills` does not list ({})",
+                    self.scenario.skills.join(", ")
+                ),
+            ));
         }
         Ok(())
     }

@@ -360,7 +360,8 @@ impl World {
             Prop::Bucket(_) => PropPlacement { pos: [x, y, 0.0], yaw, top: idx.built_height, scale: 1.0, mass: 0.0 },
             Prop::Box(b) => {
                 let (s, m) = (b.scale.sample(rng), b.mass.sample(rng));
-                if b.scale.is_random() || b.mass.is_random() {
+                // A fixed scale other than 1 is applied too (the model is built at scale 1).
+                if b.scale.is_random() || b.mass.is_random() || s != 1.0 {
                     rescale.push((idx.body, s, m));
                 }
                 let half = 0.5 * b.size.2 * s;
@@ -368,7 +369,8 @@ impl World {
             }
             Prop::Ball(b) => {
                 let (s, m) = (b.scale.sample(rng), b.mass.sample(rng));
-                if b.scale.is_random() || b.mass.is_random() {
+                // A fixed scale other than 1 is applied too (the model is built at scale 1).
+                if b.scale.is_random() || b.mass.is_random() || s != 1.0 {
                     rescale.push((idx.body, s, m));
                 }
                 let r = b.radius * s;
@@ -501,6 +503,77 @@ impl World {
                 (p1 == Some(a) && p2 == Some(b)) || (p1 == Some(b) && p2 == Some(a))
             })
             .count()
+    }
+
+    /// The gap between the hands' surfaces (m): the distance between the hand bodies less the
+    /// largest bounding radius of each hand's geoms.
+    pub fn hand_gap(&self) -> f64 {
+        let idx = &self.shared.index;
+        let mj = &self.shared.model;
+        let radius = |hand: usize| {
+            (0..mj.geom_bodyid().len())
+                .filter(|&g| mj.geom_bodyid()[g] as usize == hand)
+                .map(|g| mj.geom_rbound()[g])
+                .fold(0.0, f64::max)
+        };
+        let (l, r) = (self.body_position(idx.hands[0]), self.body_position(idx.hands[1]));
+        let d = ((l[0] - r[0]).powi(2) + (l[1] - r[1]).powi(2) + (l[2] - r[2]).powi(2)).sqrt();
+        d - radius(idx.hands[0]) - radius(idx.hands[1])
+    }
+
+    /// Spreads or closes the arms until the hands' surfaces are `gap` m apart ([`World::hand_gap`]),
+    /// to hold an object of that width: both `<side>_shoulder_z` joints (the arms' swing in and
+    /// out) turned by equal and opposite angles up to 0.8 rad within their ranges, then, if
+    /// that is not enough, both `<side>_shoulder_x` joints the same way. Velocities, the root
+    /// and the other joints are kept, and the PD targets follow the new pose. Returns the gap
+    /// then left from `gap` (m; the best the joints allow), or `None` for a body without those
+    /// joints (left as it was).
+    pub fn fit_hand_gap(&mut self, gap: f64) -> Option<f64> {
+        let idx = &self.shared.index;
+        let joint = |name: &str| idx.joints.iter().find(|j| j.name == name).map(|j| (j.qpos, j.range));
+        let pairs = [
+            (joint("left_shoulder_z")?, joint("right_shoulder_z")?),
+            (joint("left_shoulder_x")?, joint("right_shoulder_x")?),
+        ];
+        let mut left = self.hand_gap() - gap;
+        for (a, b) in pairs {
+            if left.abs() < 0.001 {
+                break;
+            }
+            left = self.fit_pair(a, b, gap);
+        }
+        self.hold_pose();
+        self.forward();
+        Some(left)
+    }
+
+    /// [`World::fit_hand_gap`] with one pair of joints (qpos address and range each): the
+    /// error left, the pair set to the best turn found.
+    fn fit_pair(&mut self, a: (usize, [f64; 2]), b: (usize, [f64; 2]), gap: f64) -> f64 {
+        let start = (self.data.qpos()[a.0], self.data.qpos()[b.0]);
+        // Equal and opposite turns (the arms are mirror images); both signs are tried.
+        let error_at = |world: &mut World, turn: f64| {
+            let qp = world.data.qpos_mut();
+            qp[a.0] = (start.0 - turn).clamp(a.1[0], a.1[1]);
+            qp[b.0] = (start.1 + turn).clamp(b.1[0], b.1[1]);
+            world.data.kinematics();
+            world.hand_gap() - gap
+        };
+        let mut best = (error_at(self, 0.0), 0.0);
+        let consider = |world: &mut World, turn: f64, best: &mut (f64, f64)| {
+            let e = error_at(world, turn);
+            if e.abs() < best.0.abs() {
+                *best = (e, turn);
+            }
+        };
+        for k in -16..=16 {
+            consider(self, f64::from(k) * 0.05, &mut best);
+        }
+        let centre = best.1;
+        for k in -10..=10 {
+            consider(self, centre + f64::from(k) * 0.005, &mut best);
+        }
+        error_at(self, best.1)
     }
 
     /// Stands the character in the default pose at `(x, y)` on the floor, facing `yaw`
@@ -855,6 +928,17 @@ impl World {
         let sd = self.data.sensordata();
         for (o, &adr) in out.iter_mut().zip(&self.shared.index.foot_touch) {
             *o = sd[adr] > threshold;
+        }
+    }
+
+    /// A free box's edge lengths or a ball's diameter (three times) this episode, after its
+    /// per-episode scale (m); zeros for any other prop.
+    pub fn prop_extent(&self, prop: usize) -> [f64; 3] {
+        let s = self.placements[prop].scale;
+        match &self.shared.scenario.scenario.props[prop] {
+            Prop::Box(b) => [b.size.0 * s, b.size.1 * s, b.size.2 * s],
+            Prop::Ball(b) => [2.0 * b.radius * s; 3],
+            _ => [0.0; 3],
         }
     }
 

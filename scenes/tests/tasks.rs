@@ -4,7 +4,7 @@
 use rand::SeedableRng;
 use rand::rngs::StdRng;
 use repertoire_scenes::scenario::{SitApproach, SitFall, Task, WarehousePhase};
-use repertoire_scenes::{Location, ScenarioFile, SceneError, WorldModel};
+use repertoire_scenes::{Feature, Location, ObservationLayout, ScenarioFile, SceneError, World, WorldModel};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -88,6 +88,11 @@ fn malformed_task_sections_are_located_and_explained() {
         (r#"Warehouse(box: "crate", pedestals: ["a", "b"], start_phases: [Walk])"#, "Walk", 11),
         (r#"Warehouse(box: "crate", pedestals: ["a", "b"], rest_contacts: 0)"#, "rest_contacts", 11),
         (r#"Warehouse(box: "crate", pedestals: ["a", "b"], reach_m: "far")"#, "", 11),
+        (
+            r#"Warehouse(box: "crate", pedestals: ["a", "b"], hold_from: "juggle")"#,
+            "hold_from names skill `juggle`",
+            11,
+        ),
         (r#"Toss(ball: "crate", bucket: "bucket")"#, "`crate` is a box, not a ball", 6),
         (r#"Toss(ball: "ball", bucket: "a")"#, "`a` is a pedestal, not a bucket", 4),
         (r#"Toss(ball: "ball", bucket: "bucket", throw: (v_x: (0.0, 2.0)))"#, "v_x must be positive", 11),
@@ -283,4 +288,48 @@ fn the_guarded_sit_variant_differs_from_sit_only_in_its_guard() {
     let guard = graph.guards.pop().unwrap();
     assert_eq!((guard.skill.as_str(), guard.near.as_str(), guard.within_m), ("sit", "chair", 0.8));
     assert_eq!(guarded, sit, "the same scene, skills, graph and task");
+}
+
+#[test]
+fn a_fixed_scale_other_than_one_resizes_the_box_too() {
+    // Before stop 31 only a scale drawn from a range reached the geometry: `scale: (1.5, 1.5)`
+    // was reported in the placement while the box kept its built size.
+    for (scale, half) in [("(1.5, 1.5)", 0.15), ("(1.0, 1.0)", 0.1), ("(0.5, 1.5)", f64::NAN)] {
+        let text = format!(
+            r#"Scenario(
+    name: "scaled_box",
+    body: Humanoid,
+    props: [Box(name: "box", at: (x: 2.0, y: 0.0, z: 0.0, yaw_deg: 0.0), size: (0.2, 0.2, 0.2), scale: {scale}, mass: 2.0)],
+    spawn: [Zone(name: "origin", radius: (0.0, 0.1), angle_deg: (-180.0, 180.0), facing: Uniform)],
+    task: Free(time_limit_s: 5.0),
+    skills: ["walk"],
+)"#
+        );
+        let file = ScenarioFile::parse(Path::new("scaled_box.ron"), text).expect("scene");
+        let model = Arc::new(WorldModel::build(file).expect("builds"));
+        let b = model.prop_id("box").unwrap();
+        let mut world = World::new(Arc::clone(&model));
+        world.reset_in_zone("origin", &mut StdRng::seed_from_u64(4)).unwrap();
+        let s = world.placements()[b].scale;
+        let half = if half.is_nan() { 0.1 * s } else { half };
+        let m = world.data().model();
+        let geom = (0..m.geom_bodyid().len()).find(|&g| m.geom_bodyid()[g] as usize == model.props[b].body).unwrap();
+        assert!((m.geom_size()[geom][0] - half).abs() < 1e-12, "scale {scale}: half edge {}", m.geom_size()[geom][0]);
+        // Resting on the floor at its scaled half height.
+        assert!((world.body_position(model.props[b].body)[2] - half).abs() < 1e-9);
+        // And observed at that size (`PropSize`), after the pose.
+        let features = [Feature::RootHeight, Feature::PropPose("box".into()), Feature::PropSize("box".into())];
+        let layout = ObservationLayout::new(&model, &features).expect("layout");
+        assert_eq!(layout.size, 1 + 5 + 3);
+        let mut obs = vec![0.0f32; layout.size];
+        world.observe(&layout, &mut obs);
+        for v in &obs[6..9] {
+            assert!((f64::from(*v) - 2.0 * half).abs() < 1e-6, "scale {scale}: observed size {:?}", &obs[6..9]);
+        }
+    }
+    // Only a box's or a ball's size is observed.
+    let file = ScenarioFile::load(shipped("warehouse.ron")).unwrap();
+    let model = WorldModel::build(file).unwrap();
+    let err = ObservationLayout::new(&model, &[Feature::PropSize("pedestal_a".into())]).unwrap_err().to_string();
+    assert!(err.contains("prop_size:pedestal_a") && err.contains("is a pedestal"), "{err}");
 }

@@ -302,9 +302,9 @@ fn object_setup(spec: &SpecFile, model: &WorldModel, r: &Reference) -> Result<Op
         _ => (0..n, None),
     };
     let shape = &model.scenario.scenario.props[prop];
-    let half = match shape {
-        repertoire_scenes::Prop::Box(b) => 0.5 * b.size.2,
-        repertoire_scenes::Prop::Ball(b) => b.radius,
+    let (half, width) = match shape {
+        repertoire_scenes::Prop::Box(b) => (0.5 * b.size.2, b.size.1),
+        repertoire_scenes::Prop::Ball(b) => (b.radius, 2.0 * b.radius),
         other => return Err(invalid(format!("prop `{name}` is a {}, not a box or ball", other.kind()))),
     };
     Ok(Some(ObjectSetup {
@@ -313,5 +313,6 @@ fn object_setup(spec: &SpecFile, model: &WorldModel, r: &Reference) -> Result<Op
         catch_frame: if matches!(goal, Goal::Catch { .. }) { pedestal_frame } else { None },
         held,
         half,
+        width,
     }))
 }

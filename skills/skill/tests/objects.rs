@@ -45,7 +45,7 @@ const OBJECT: usize = 6;
 
 #[test]
 fn object_specs_load_and_replay_their_clips() {
-    for spec in ["lift.ron", "carry.ron", "put_down.ron", "catch.ron"] {
+    for spec in ["lift.ron", "carry.ron", "carry_any_box.ron", "put_down.ron", "catch.ron"] {
         let s = setup(spec);
         let obj = s.settings.object.as_ref().unwrap_or_else(|| panic!("{spec}: no object setup"));
         assert!(!obj.held.is_empty(), "{spec}: the clip never holds its object");
@@ -355,4 +355,71 @@ fn a_skill_is_refused_by_a_spec_whose_goal_gives_it_other_inputs() {
             .expect_err("a straight carry does not fit the steering spec")
             .to_string();
     assert!(err.contains("manifest.ron") && err.contains("carry_to.ron") && err.contains("--warm-start"), "{err}");
+}
+
+#[test]
+fn a_box_scaled_for_the_episode_gets_the_arms_fitted_round_it() {
+    let text = std::fs::read_to_string(specs().join("carry_box.ron")).unwrap();
+    let spec = std::fs::read_to_string(specs().join("carry.ron")).unwrap();
+    let fixed = "size: (0.3, 0.3, 0.3), mass: 2.0)";
+    assert!(text.contains(fixed), "carry_box.ron no longer holds {fixed}");
+    for scale in [0.75, 1.0, 1.25] {
+        let dir = temp(&format!("scaled-{scale}"));
+        let scaled = format!("size: (0.3, 0.3, 0.3), scale: ({scale}, {scale}), mass: 2.0)");
+        std::fs::write(dir.join("carry_box.ron"), text.replace(fixed, &scaled)).unwrap();
+        std::fs::write(dir.join("carry.ron"), &spec).unwrap();
+        let s = SkillSetup::new(SpecFile::load(&dir.join("carry.ron")).unwrap(), &dir).expect("builds");
+        let obj = s.settings.object.clone().expect("object");
+        let mut env = s.env();
+        let mut rng = EnvRng::seed_from_u64(9);
+        let mut obs = vec![0.0; env.obs_dim()];
+        // The hands reach HOLD_SQUEEZE_M into each side of the box.
+        let want = 0.3 * scale - 2.0 * repertoire_skill::imitation::HOLD_SQUEEZE_M;
+        for _ in 0..6 {
+            env.reset(&mut rng, &mut obs);
+            let w = env.world();
+            assert_eq!(w.placements()[obj.prop].scale, scale);
+            let gap = w.hand_gap();
+            assert!((gap - want).abs() < 0.01, "box ×{scale}: hands {gap:.3} m apart, want {want:.3}");
+            assert_eq!(w.contacts().hands_on_prop(obj.prop), [true, true], "box ×{scale}: both hands touch it");
+            let (c, hands) = object_and_hands(w, obj.prop);
+            assert!(dist(c, hands) < 0.01);
+            if scale == 1.0 {
+                // The box the clip's arms were posed for: they are left as the clip has them.
+                let f = env.task().phase();
+                let mut q = vec![0.0; w.model().index.dof()];
+                w.joint_angles(&mut q);
+                let r = &s.settings.reference;
+                assert!(q.iter().zip(r.joints_at(f)).all(|(a, b)| (a - b).abs() < 1e-9), "frame {f} untouched");
+            }
+        }
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
+
+#[test]
+fn carry_any_box_sees_this_episodes_box_size_and_draws_the_warehouses_boxes() {
+    let s = setup("carry_any_box.ron");
+    let obj = s.settings.object.clone().expect("object");
+    let size = s.layout.entries.iter().find(|e| e.name == "prop_size:box").expect("the size is observed");
+    assert_eq!(size.len, 3);
+    let mut env = s.env();
+    let mut rng = EnvRng::seed_from_u64(12);
+    let mut obs = vec![0.0; env.obs_dim()];
+    let (mut small, mut large) = (f64::MAX, f64::MIN);
+    for _ in 0..12 {
+        // The policy's input is normalised; the world's own observation holds the raw size.
+        env.reset(&mut rng, &mut obs);
+        let w = env.world();
+        let scale = w.placements()[obj.prop].scale;
+        let mut raw = vec![0.0f32; s.layout.size];
+        w.observe(&s.layout, &mut raw);
+        for v in &raw[size.offset..size.offset + 3] {
+            assert!((f64::from(*v) - 0.3 * scale).abs() < 1e-6, "observed {v}, box ×{scale}");
+        }
+        assert!((2.0..=7.0).contains(&w.placements()[obj.prop].mass));
+        (small, large) = (small.min(scale), large.max(scale));
+        assert_eq!(w.contacts().hands_on_prop(obj.prop), [true, true], "box ×{scale} between both hands");
+    }
+    assert!(small < 0.9 && large > 1.1, "the scale varies over ×0.75–1.25: {small:.2}–{large:.2}");
 }
