@@ -17,8 +17,8 @@ use std::path::Path;
 use std::sync::Arc;
 
 use rand::Rng;
+use repertoire_scenes::world::{HOLD_FIT_TOLERANCE_M, HOLD_SQUEEZE_M};
 use repertoire_scenes::{World, WorldModel};
-use repertoire_skill::imitation::{HOLD_FIT_TOLERANCE_M, HOLD_SQUEEZE_M};
 use repertoire_skill::library;
 use repertoire_skill::pool::Pool;
 
@@ -279,9 +279,6 @@ impl WarehouseJudge {
     }
 }
 
-/// How far the hands' gap may be from the wanted one (m).
-const GAP_TOLERANCE_M: f64 = HOLD_FIT_TOLERANCE_M;
-
 /// The arm joints the holding pose moves, per side (left, right): the built-in humanoid's
 /// `<side>_shoulder_y`, `<side>_shoulder_z` and `<side>_elbow` (indices into the body's joints).
 /// A body without them is an error naming the first missing joint and the body.
@@ -310,16 +307,13 @@ pub fn holding_joints(model: &WorldModel) -> Result<[[usize; 3]; 2]> {
 
 /// This episode's depth and width (m) of box or ball `b` (its x and y edges, or its diameter).
 fn box_extent(world: &World, b: usize) -> Result<(f64, f64)> {
-    let scale = world.placements().get(b).map_or(1.0, |p| p.scale);
     match world.model().scenario.scenario.props.get(b) {
-        Some(Prop::Box(spec)) => Ok((spec.size.0 * scale, spec.size.1 * scale)),
-        Some(Prop::Ball(ball)) => Ok((2.0 * ball.radius * scale, 2.0 * ball.radius * scale)),
+        Some(Prop::Box(_) | Prop::Ball(_)) => {
+            let [depth, width, _] = world.prop_extent(b);
+            Ok((depth, width))
+        }
         _ => Err(MetaError::Invalid(format!("prop {b} is not a box or a ball"))),
     }
-}
-
-fn box_width(world: &World, b: usize) -> Result<f64> {
-    box_extent(world, b).map(|(_, w)| w)
 }
 
 /// Stands the character at `(x, y)` facing `yaw` in one of `pool`'s states (drawn with `rng`),
@@ -336,11 +330,8 @@ pub fn place_from_pool(
 ) -> Result<()> {
     let state = &pool.states[rng.random_range(0..pool.states.len())];
     state.apply(world, x, y, yaw).map_err(|e| MetaError::Invalid(format!("a hold_from state: {e}")))?;
-    let width = box_width(world, b)?;
-    let want = width - 2.0 * HOLD_SQUEEZE_M;
-    if (world.hand_gap() - want).abs() > HOLD_FIT_TOLERANCE_M {
-        world.fit_hand_gap(want);
-    }
+    let (_, width) = box_extent(world, b)?;
+    world.fit_hands_round(width);
     let idx = &world.model().index;
     let (l, r) = (world.body_position(idx.hands[0]), world.body_position(idx.hands[1]));
     let centre = [(l[0] + r[0]) / 2.0, (l[1] + r[1]) / 2.0, (l[2] + r[2]) / 2.0];
@@ -422,11 +413,11 @@ pub fn place_holding(world: &mut World, b: usize, x: f64, y: f64, yaw: f64) -> R
                 }
             }
         }
-        if best.as_ref().is_some_and(|(e, _)| *e < 0.25 * GAP_TOLERANCE_M) {
+        if best.as_ref().is_some_and(|(e, _)| *e < 0.25 * HOLD_FIT_TOLERANCE_M) {
             break; // a close fit at this shoulder angle; the others are fallbacks
         }
     }
-    let Some((err, pose)) = best.filter(|(e, _)| *e < GAP_TOLERANCE_M) else {
+    let Some((err, pose)) = best.filter(|(e, _)| *e < HOLD_FIT_TOLERANCE_M) else {
         return Err(MetaError::Invalid(format!(
             "place_holding: no arm pose puts the hands {width:.2} m apart around prop {b}"
         )));

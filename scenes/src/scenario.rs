@@ -115,7 +115,8 @@ pub struct SkillGraphSpec {
 
 /// A precondition on switching to `skill`: the pelvis within `within_m` (horizontally) of the
 /// prop `near`'s centre (a prop of the scenario, or a name its `bind` map binds: `"pedestal"`
-/// bound to `Focal` is the warehouse's focal pedestal at the decision). `(skill: "sit", near: "chair", within_m: 0.9)` keeps a controller from
+/// bound to `Focal` is the warehouse's focal pedestal at the decision).
+/// `(skill: "sit", near: "chair", within_m: 0.9)` keeps a controller from
 /// starting a sit a metre or more from the chair, which no sit absorbs.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]

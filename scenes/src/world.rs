@@ -17,6 +17,14 @@ use rayon::prelude::*;
 use std::f64::consts::PI;
 use std::sync::Arc;
 
+/// How far each hand reaches into an object put between the hands (m): MuJoCo's soft contacts
+/// then press it from both sides.
+pub const HOLD_SQUEEZE_M: f64 = 0.015;
+
+/// How far the hands' gap may be from an object's width less the squeeze before
+/// [`World::fit_hands_round`] moves the arms (m).
+pub const HOLD_FIT_TOLERANCE_M: f64 = 0.01;
+
 /// How a prop is held in place.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum PropMount {
@@ -519,6 +527,16 @@ impl World {
         let (l, r) = (self.body_position(idx.hands[0]), self.body_position(idx.hands[1]));
         let d = ((l[0] - r[0]).powi(2) + (l[1] - r[1]).powi(2) + (l[2] - r[2]).powi(2)).sqrt();
         d - radius(idx.hands[0]) - radius(idx.hands[1])
+    }
+
+    /// Fits the arms round an object `width` m wide held between the hands: when the hands'
+    /// gap is more than [`HOLD_FIT_TOLERANCE_M`] from `width` less [`HOLD_SQUEEZE_M`] a side,
+    /// [`World::fit_hand_gap`] spreads or closes them to it; otherwise they stay as they are.
+    pub fn fit_hands_round(&mut self, width: f64) {
+        let want = width - 2.0 * HOLD_SQUEEZE_M;
+        if (self.hand_gap() - want).abs() > HOLD_FIT_TOLERANCE_M {
+            self.fit_hand_gap(want);
+        }
     }
 
     /// Spreads or closes the arms until the hands' surfaces are `gap` m apart ([`World::hand_gap`]),

@@ -42,13 +42,7 @@ pub struct ObjectSetup {
     pub width: f64,
 }
 
-/// How far each hand reaches into an object put between the hands at an episode's start (m):
-/// MuJoCo's soft contacts then press it from both sides.
-pub const HOLD_SQUEEZE_M: f64 = 0.015;
-
-/// A held start whose hands' gap is this far or less from the object's width less the squeeze
-/// keeps its arms as they are (m); past it, [`World::fit_hand_gap`] spreads or closes them.
-pub const HOLD_FIT_TOLERANCE_M: f64 = 0.01;
+pub use repertoire_scenes::world::{HOLD_FIT_TOLERANCE_M, HOLD_SQUEEZE_M};
 
 /// Everything about a skill's task that does not change between episodes; shared by all envs.
 #[derive(Debug, Clone)]
@@ -241,12 +235,13 @@ impl ImitationTask {
         }
         let (still, zero) = ([1.0, 0.0, 0.0, 0.0], [0.0; 3]);
         if obj.held.contains(&f) {
-            // Between the body's own hands (a pool state's may differ from the reference's),
-            // the arms first spread or closed to the object's width where they would miss it or
-            // squeeze it hard (a box scaled this episode, a pool state's looser hold).
-            let want = obj.width * world.placements()[obj.prop].scale - 2.0 * HOLD_SQUEEZE_M;
-            if (world.hand_gap() - want).abs() > HOLD_FIT_TOLERANCE_M {
-                world.fit_hand_gap(want);
+            // Between the body's own hands (a pool state's may differ from the reference's). A
+            // box scaled this episode first gets the arms spread or closed to its width where
+            // they would miss it or squeeze it hard; one at its built size is held as the clip
+            // or the pool state holds it.
+            let scale = world.placements()[obj.prop].scale;
+            if scale != 1.0 {
+                world.fit_hands_round(obj.width * scale);
             }
             let idx = &world.model().index;
             let [l, rt] = [world.body_position(idx.hands[0]), world.body_position(idx.hands[1])];
