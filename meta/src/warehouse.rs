@@ -41,9 +41,10 @@ pub struct WarehouseSpec {
     pub start_phases: Vec<WarehousePhase>,
     /// The box's full edge lengths before its per-episode scale (m).
     pub box_size: (f64, f64, f64),
-    /// The scenario's `hold_from` skill and, once [`WarehouseSpec::load_hold_pool`] read it
-    /// from a library, its end states: where CARRY and PUTDOWN episodes start.
+    /// The scenario's `hold_from` skill, whose end states start CARRY and PUTDOWN episodes.
     pub hold_from: Option<String>,
+    /// Those end states, once [`WarehouseSpec::load_hold_pool`] read them from a library
+    /// (`None` before, and without `hold_from`: the fitted standing pose instead).
     pub hold_pool: Option<Arc<Pool>>,
 }
 
