@@ -199,13 +199,13 @@ fn bind_entries_no_skill_reads_are_found() {
 #[test]
 fn each_skill_plays_with_its_own_grip_and_episodes_start_with_open_hands() {
     // The warehouse lists the library's carry (it grips; the other skills let go).
-    let skills = r#"skills: ["walk", "turn_left", "turn_right", "lift", "carry", "put_down"]"#;
+    let skills = r#"skills: ["walk_to", "turn_left", "turn_right", "lift", "carry", "put_down"]"#;
     let model = warehouse_with("warehouse-carry.ron", |t| {
         assert!(t.contains(skills), "scenes/warehouse.ron no longer lists {skills}");
         unguarded(t)
     });
     let s = setup(model);
-    let (carry, walk, lift) = (skill(&s, "carry"), skill(&s, "walk"), skill(&s, "lift"));
+    let (carry, walk, lift) = (skill(&s, "carry"), skill(&s, "walk_to"), skill(&s, "lift"));
     assert_eq!((s.skills[carry].grip, s.skills[walk].grip, s.skills[lift].grip), (1.0, 0.0, 0.0));
     assert!(s.skills[carry].uses_target, "the library's carry steers to the controller's target");
     let mut env = MetaEnv::new(Arc::clone(&s));

@@ -2,6 +2,8 @@
 //! turns as its skills): the phase table, the pick-up map and the strike zone are reproducible
 //! for a seed and written as tables and pictures.
 
+mod support;
+
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -23,7 +25,7 @@ fn walking(name: &str, skills: &str, limit: &str, seconds: f64) -> Arc<MetaSetup
     assert!(text.contains(skills) && text.contains(limit), "scenes/{name}.ron no longer says {skills} and {limit}");
     let text = text
         .replace(skills, r#"skills: ["walk", "turn_left", "turn_right"]"#)
-        .replace(&graph_block(&text), "")
+        .replace(&support::graph_block(&text), "")
         .replace("        hold_from: \"lift\",\n", "")
         .replace(limit, &format!("time_limit_s: {seconds:.1}"));
     let file = ScenarioFile::parse(&root().join(format!("scenes/{name}-walk.ron")), text).unwrap();
@@ -61,7 +63,7 @@ fn tiny_controller(setup: &Arc<MetaSetup>, tag: &str) -> (PathBuf, repertoire_le
 fn the_warehouse_evaluation_counts_phases_and_maps_pick_ups() {
     let s = walking(
         "warehouse",
-        r#"skills: ["walk", "turn_left", "turn_right", "lift", "carry", "put_down"]"#,
+        r#"skills: ["walk_to", "turn_left", "turn_right", "lift", "carry", "put_down"]"#,
         "time_limit_s: 15.0",
         2.0,
     );
@@ -160,12 +162,4 @@ fn the_strike_zone_throws_every_cell() {
     assert!(rec.frames() > 1 && rec.frames() <= 3 * 60 + 1, "{} frames", rec.frames());
     let md = a.markdown();
     assert!(md.contains("worst throws") && md.contains("worst/throw_"), "{md}");
-}
-
-/// The scenario's `skill_graph: ( … ),` block (empty when it has none): variants over fewer
-/// skills drop it, since it names skills they leave out.
-fn graph_block(text: &str) -> String {
-    let Some(start) = text.find("    skill_graph: (") else { return String::new() };
-    let end = start + text[start..].find("\n    ),\n").expect("the graph block closes") + "\n    ),\n".len();
-    text[start..end].to_string()
 }

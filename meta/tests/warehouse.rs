@@ -3,6 +3,8 @@
 //! four or more points, the box on the floor), the phase judge's order and reward, and the meta
 //! environment over the committed walk and turn skills.
 
+mod support;
+
 use std::path::Path;
 use std::sync::Arc;
 
@@ -195,11 +197,11 @@ fn the_judge_runs_the_phases_in_order_with_one_reward_each_and_swaps_pedestals()
 /// The shipped warehouse with only the committed walk and turn skills.
 fn walking_setup(start_phases: &str) -> Arc<MetaSetup> {
     let text = std::fs::read_to_string(root().join("scenes/warehouse.ron")).unwrap();
-    let skills = r#"skills: ["walk", "turn_left", "turn_right", "lift", "carry", "put_down"]"#;
+    let skills = r#"skills: ["walk_to", "turn_left", "turn_right", "lift", "carry", "put_down"]"#;
     assert!(text.contains(skills), "scenes/warehouse.ron no longer lists {skills}");
     let text = text
         .replace(skills, r#"skills: ["walk", "turn_left", "turn_right"]"#)
-        .replace(&graph_block(&text), "")
+        .replace(&support::graph_block(&text), "")
         .replace("        hold_from: \"lift\",\n", "")
         .replace("start_phases: [Goto, Lift, Carry, PutDown]", &format!("start_phases: [{start_phases}]"));
     let file = ScenarioFile::parse(&root().join("scenes/warehouse-walk.ron"), text).expect("variant");
@@ -305,7 +307,7 @@ fn a_warehouse_without_spawn_zones_is_refused() {
     let text = format!("{}{}", &text[..start], &text[end..]);
     let file = ScenarioFile::parse(&root().join("scenes/no-spawn.ron"), text).unwrap();
     let model = Arc::new(WorldModel::build(file).unwrap());
-    let graph = SkillGraph::of(&model.scenario.scenario).restricted(&["walk".to_string()]).unwrap();
+    let graph = SkillGraph::of(&model.scenario.scenario).restricted(&["walk_to".to_string()]).unwrap();
     let err = MetaSetup::new(model, &root().join("skills/library"), graph).err().expect("no zone").to_string();
     assert!(err.contains("no-spawn.ron") && err.contains("spawn zone"), "{err}");
 }
@@ -413,7 +415,7 @@ fn carry_and_putdown_can_start_in_lifts_end_states_with_the_box_fitted_between_t
     // A library whose lift has no end states: refused, naming the file that is missing.
     let bare = std::env::temp_dir().join(format!("repertoire-no-lift-pool-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&bare);
-    for skill in ["walk", "turn_left", "turn_right", "lift", "carry", "put_down"] {
+    for skill in ["walk_to", "turn_left", "turn_right", "lift", "carry", "put_down"] {
         std::fs::create_dir_all(bare.join(skill)).unwrap();
         for f in std::fs::read_dir(lib.join(skill)).unwrap() {
             let f = f.unwrap().path();
@@ -426,12 +428,4 @@ fn carry_and_putdown_can_start_in_lifts_end_states_with_the_box_fitted_between_t
     assert!(err.contains("warehouse-hold.ron") && err.contains("hold_from"), "{err}");
     assert!(err.contains(&bare.join("lift").join("end_poses.ron").display().to_string()), "{err}");
     let _ = std::fs::remove_dir_all(&bare);
-}
-
-/// The scenario's `skill_graph: ( … ),` block (empty when it has none): variants over fewer
-/// skills drop it, since it names skills they leave out.
-fn graph_block(text: &str) -> String {
-    let Some(start) = text.find("    skill_graph: (") else { return String::new() };
-    let end = start + text[start..].find("\n    ),\n").expect("the graph block closes") + "\n    ),\n".len();
-    text[start..end].to_string()
 }

@@ -93,6 +93,8 @@ pub struct ImitationTask {
     target_steps: usize,
     /// This episode's chair offset from the clip's seat (world x, y, yaw).
     seat_offset: [f64; 3],
+    /// This episode's pedestal offset from the clip's spot (world x, y, yaw; `jitter_m`).
+    pedestal_offset: [f64; 3],
     /// Draws the next target after an arrival (`Goal::Target::reach_m`) or a timeout
     /// (`retarget_s`), seeded at reset.
     target_rng: EnvRng,
@@ -119,6 +121,7 @@ impl ImitationTask {
             last_distance: 0.0,
             target_steps: 0,
             seat_offset: [0.0; 3],
+            pedestal_offset: [0.0; 3],
             target_rng: EnvRng::seed_from_u64(0),
             reached: 0,
             joints: vec![0.0; dof],
@@ -231,7 +234,11 @@ impl ImitationTask {
         };
         if let Some((ped, g)) = obj.pedestal {
             let (p, yaw) = at(g);
-            world.move_prop(ped, p[0], p[1], yaw).expect("the pedestal is validated");
+            let [dx, dy, dyaw] = self.pedestal_offset;
+            world.move_prop(ped, p[0] + dx, p[1] + dy, wrap_angle(yaw + dyaw)).expect("the pedestal is validated");
+            if self.pedestal_offset != [0.0; 3] {
+                clear_pedestal(world, ped);
+            }
         }
         let (still, zero) = ([1.0, 0.0, 0.0, 0.0], [0.0; 3]);
         if obj.held.contains(&f) {
@@ -396,6 +403,7 @@ impl ImitationTask {
     pub fn place_at_frame(&mut self, world: &mut World, f: usize, x: f64, y: f64, heading: f64) {
         self.place_reference(world, f, x, y, heading);
         self.seat_offset = [0.0; 3];
+        self.pedestal_offset = [0.0; 3];
         self.place_seat(world);
         // A fixed stream: a throw drawn here is the same on every call.
         self.place_object(world, &mut <EnvRng as rand::SeedableRng>::seed_from_u64(f as u64));
@@ -657,6 +665,19 @@ impl Task for ImitationTask {
             let [ex, ey] = self.to_world([sx, sy]);
             self.seat_offset = [wx - ex, wy - ey, wrap_angle(wyaw - syaw - self.yaw)];
         }
+        // The pedestal's jitter: full before the clip's hands reach it, none once they hold
+        // (lift) or have let go of (put_down) the box, which the rest of the clip assumes.
+        self.pedestal_offset =
+            match (settings.goal.pedestal_jitter(), settings.object.as_ref().and_then(|o| o.pedestal)) {
+                ((jm, jd), Some((_, g))) if (jm > 0.0 || jd > 0.0) && self.phase < g => {
+                    let s = (g - self.phase) as f64 / g as f64;
+                    let radius = s * jm * rng.random_range(0.0f64..=1.0).sqrt();
+                    let angle = rng.random_range(-std::f64::consts::PI..std::f64::consts::PI);
+                    let turn = s * jd.to_radians() * rng.random_range(-1.0f64..=1.0);
+                    [radius * angle.cos(), radius * angle.sin(), turn]
+                }
+                _ => [0.0; 3],
+            };
         self.place_seat(world);
         if let (Some((prop, _)), Goal::Seat { clear_start: true, .. }) = (settings.seat, &settings.goal) {
             self.separate_from_seat(world, prop);
@@ -756,6 +777,23 @@ pub fn catch_throw(
     let lateral = spec.lateral.sample(rng);
     let d_z = spec.d_z.sample(rng);
     spec.throw_with(target, yaw, v_x * flight, v_x, lateral, d_z, rng)
+}
+
+/// Pushes a pedestal the jitter moved into the character away from the pelvis, 2 cm at a time
+/// and at most 20 cm, so that MuJoCo does not shoot the two apart at the first step.
+fn clear_pedestal(world: &mut World, ped: usize) {
+    for _ in 0..10 {
+        if world.penetration_with_prop(ped, None) <= 0.002 {
+            break;
+        }
+        let pl = world.placements()[ped];
+        let pelvis = world.pelvis_frame().pos;
+        let (dx, dy) = (pl.pos[0] - pelvis[0], pl.pos[1] - pelvis[1]);
+        let n = (dx * dx + dy * dy).sqrt().max(1e-9);
+        world
+            .move_prop(ped, pl.pos[0] + 0.02 * dx / n, pl.pos[1] + 0.02 * dy / n, pl.yaw)
+            .expect("the pedestal is validated");
+    }
 }
 
 fn apply_pool_state(state: &PoolState, world: &mut World, x: f64, y: f64, heading: f64, k: f64) {

@@ -215,6 +215,16 @@ pub enum Goal {
         /// Sharpness of the hold term (1/m²).
         #[serde(default = "default_hold_scale")]
         scale: f64,
+        /// Each episode moves the pedestal off the clip's spot by up to `jitter_m` (uniform in
+        /// a disc) and turns it, with the box on it, by up to ±`jitter_deg` about its centre,
+        /// scaled by how far the start frame is from the grip (full at the clip's first frame
+        /// and from a predecessor's end pose, none once gripped): where a walk arrives, the
+        /// pedestal is seldom exactly under the clip's hands or square to them.
+        #[serde(default, skip_serializing_if = "is_zero")]
+        jitter_m: f64,
+        /// See `jitter_m` (degrees either way).
+        #[serde(default, skip_serializing_if = "is_zero")]
+        jitter_deg: f64,
     },
     /// Carry: the box `prop` starts between the clip's hands; reward
     /// `weight · (0.6·hold + 0.4·exp(−speed_scale·‖v − v̂‖²))` with `hold` as for [`Goal::Lift`]
@@ -261,6 +271,13 @@ pub enum Goal {
         /// Sharpness of the placement term (1/m²).
         #[serde(default = "default_hold_scale")]
         scale: f64,
+        /// As for [`Goal::Lift`]: the pedestal off the clip's spot by up to `jitter_m`, turned
+        /// by up to ±`jitter_deg`, full at the clip's first frame and none once released.
+        #[serde(default, skip_serializing_if = "is_zero")]
+        jitter_m: f64,
+        /// See `jitter_m` (degrees either way).
+        #[serde(default, skip_serializing_if = "is_zero")]
+        jitter_deg: f64,
     },
     /// Catch: the ball `prop` is thrown (per `throw`, from in front) at the clip's hands'
     /// midpoint at `catch_s`, arriving then: its forward speed is drawn from `throw.v_x` and
@@ -328,6 +345,17 @@ impl Goal {
             Goal::PutDown { prop, .. } => Some(("PutDown", prop)),
             Goal::Catch { prop, .. } => Some(("Catch", prop)),
             _ => None,
+        }
+    }
+
+    /// How far (m, degrees) an object goal moves and turns its pedestal off the clip's spot
+    /// per episode at most ([`Goal::Lift`]'s and [`Goal::PutDown`]'s `jitter_m`, `jitter_deg`).
+    pub fn pedestal_jitter(&self) -> (f64, f64) {
+        match self {
+            &Goal::Lift { jitter_m, jitter_deg, .. } | &Goal::PutDown { jitter_m, jitter_deg, .. } => {
+                (jitter_m, jitter_deg)
+            }
+            _ => (0.0, 0.0),
         }
     }
 
@@ -534,6 +562,13 @@ impl SpecFile {
             }
             _ => &[],
         };
+        let (jm, jd) = spec.goal.pedestal_jitter();
+        if !(jm.is_finite() && (0.0..=1.0).contains(&jm)) {
+            return bad(format!("goal jitter_m must be between 0 and 1 m, got {jm}"));
+        }
+        if !(jd.is_finite() && (0.0..=180.0).contains(&jd)) {
+            return bad(format!("goal jitter_deg must be between 0 and 180, got {jd}"));
+        }
         for (name, v) in goal_times {
             if !(v.is_finite() && *v >= 0.0) {
                 return bad(format!("goal {name} must be finite and ≥ 0, got {v}"));

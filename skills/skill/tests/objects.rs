@@ -45,7 +45,7 @@ const OBJECT: usize = 6;
 
 #[test]
 fn object_specs_load_and_replay_their_clips() {
-    for spec in ["lift.ron", "carry.ron", "carry_any_box.ron", "put_down.ron", "catch.ron"] {
+    for spec in ["lift.ron", "lift_any_box.ron", "carry.ron", "carry_any_box.ron", "put_down.ron", "catch.ron"] {
         let s = setup(spec);
         let obj = s.settings.object.as_ref().unwrap_or_else(|| panic!("{spec}: no object setup"));
         assert!(!obj.held.is_empty(), "{spec}: the clip never holds its object");
@@ -86,6 +86,9 @@ fn bad_object_props_are_refused_with_the_spec_named() {
     let bad = text.replace("lift_m: 0.3", "lift_m: -0.3");
     let err = SpecFile::parse(&path, &bad).expect_err("negative lift").to_string();
     assert!(err.contains("lift.ron") && err.contains("lift_m"), "{err}");
+    let bad = text.replace("lift_m: 0.3", "lift_m: 0.3, jitter_m: -0.1");
+    let err = SpecFile::parse(&path, &bad).expect_err("negative jitter").to_string();
+    assert!(err.contains("lift.ron") && err.contains("jitter_m"), "{err}");
     let path = specs().join("catch.ron");
     let text = std::fs::read_to_string(&path).unwrap();
     let bad = text.replace("v_x: (2.0, 4.0)", "v_x: (-2.0, 4.0)");
@@ -422,4 +425,70 @@ fn carry_any_box_sees_this_episodes_box_size_and_draws_the_warehouses_boxes() {
         assert_eq!(w.contacts().hands_on_prop(obj.prop), [true, true], "box ×{scale} between both hands");
     }
     assert!(small < 0.9 && large > 1.1, "the scale varies over ×0.75–1.25: {small:.2}–{large:.2}");
+}
+
+#[test]
+fn lift_any_box_moves_its_pedestal_off_the_clip_spot_before_the_grip_only() {
+    // The same spec without the jitter puts the pedestal on the clip's spot; episodes drawn from
+    // the same seed start alike up to the jitter (spawn, frame and box are drawn before it).
+    let text = std::fs::read_to_string(specs().join("lift_any_box.ron")).unwrap();
+    let jitter = ", jitter_m: 0.25, jitter_deg: 45.0)";
+    assert!(text.contains(jitter), "lift_any_box.ron no longer holds {jitter}");
+    let dir = temp("still");
+    std::fs::copy(specs().join("pedestal_boxes.ron"), dir.join("pedestal_boxes.ron")).unwrap();
+    std::fs::create_dir_all(dir.join("clips")).unwrap();
+    std::fs::copy(specs().join("clips/lift.keys.ron"), dir.join("clips/lift.keys.ron")).unwrap();
+    std::fs::write(dir.join("lift_any_box.ron"), text.replace(jitter, ")")).unwrap();
+    let still = SkillSetup::new(SpecFile::load(&dir.join("lift_any_box.ron")).unwrap(), &dir).expect("builds");
+    let moved = setup("lift_any_box.ron");
+    let obj = moved.settings.object.clone().expect("object");
+    let (ped, grip) = obj.pedestal.expect("pedestal");
+    let (mut before, mut after, mut far, mut turned) = (0, 0, 0, 0);
+    for seed in 0..40 {
+        let mut at = Vec::new();
+        for s in [&still, &moved] {
+            let mut env = s.env();
+            let mut obs = vec![0.0; env.obs_dim()];
+            env.reset(&mut EnvRng::seed_from_u64(seed), &mut obs);
+            assert!(obs.iter().all(|v| v.is_finite()));
+            let w = env.world();
+            let (pl, phase) = (w.placements()[ped], env.task().phase());
+            let bx = w.placements()[obj.prop];
+            if phase < grip {
+                // The box sits on the pedestal, turned with it; nothing sinks into the pedestal.
+                let (c, _) = object_and_hands(w, obj.prop);
+                assert!((c[0] - pl.pos[0]).abs() < 1e-6 && (c[1] - pl.pos[1]).abs() < 1e-6);
+                assert!(
+                    (c[2] - (pl.top + 0.15 * bx.scale)).abs() < 0.01,
+                    "box centre {:.3} on a {:.3} top",
+                    c[2],
+                    pl.top
+                );
+                assert!(
+                    w.penetration_with_prop(ped, None) <= 0.002,
+                    "seed {seed}: the body starts inside the pedestal"
+                );
+            }
+            at.push((pl.pos, pl.yaw, phase));
+        }
+        let [(p0, y0, f0), (p1, y1, f1)] = [at[0], at[1]];
+        assert_eq!(f0, f1, "seed {seed}: the jitter changed the start frame");
+        let d = ((p1[0] - p0[0]).powi(2) + (p1[1] - p0[1]).powi(2)).sqrt();
+        let turn = (y1 - y0 + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+        if f0 < grip {
+            // At most 0.25 m off, scaled down towards the grip, and at most 20 cm more pushed clear.
+            let s = (grip - f0) as f64 / grip as f64;
+            assert!(d <= 0.25 * s + 0.2 + 1e-9, "seed {seed} frame {f0}: {d:.3} m off");
+            assert!(turn.abs() <= 45f64.to_radians() * s + 1e-9, "seed {seed} frame {f0}: turned {turn:.3}");
+            before += 1;
+            far += usize::from(d > 0.1);
+            turned += usize::from(turn.abs() > 15f64.to_radians());
+        } else {
+            assert!(d < 1e-9 && turn.abs() < 1e-9, "seed {seed}: a held start (frame {f0}) moved the pedestal");
+            after += 1;
+        }
+    }
+    assert!(before > 5 && after > 5, "{before} starts before the grip, {after} after");
+    assert!(far > 0 && turned > 0, "the jitter moved {far} and turned {turned} of {before} pedestals noticeably");
+    let _ = std::fs::remove_dir_all(&dir);
 }
