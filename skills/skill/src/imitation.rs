@@ -650,11 +650,7 @@ impl Task for ImitationTask {
             Goal::Seat { jitter_m, jitter_deg, .. } if jitter_m > 0.0 || jitter_deg > 0.0 => {
                 // Full jitter while standing, none once seated: the rest of the clip must be
                 // able to make up the difference.
-                let s = 1.0 - r.lowness(self.phase);
-                let radius = s * jitter_m * rng.random_range(0.0f64..=1.0).sqrt();
-                let angle = rng.random_range(-std::f64::consts::PI..std::f64::consts::PI);
-                let turn = s * jitter_deg.to_radians() * rng.random_range(-1.0f64..=1.0);
-                [radius * angle.cos(), radius * angle.sin(), turn]
+                jitter(rng, 1.0 - r.lowness(self.phase), jitter_m, jitter_deg)
             }
             _ => [0.0; 3],
         };
@@ -670,11 +666,7 @@ impl Task for ImitationTask {
         self.pedestal_offset =
             match (settings.goal.pedestal_jitter(), settings.object.as_ref().and_then(|o| o.pedestal)) {
                 ((jm, jd), Some((_, g))) if (jm > 0.0 || jd > 0.0) && self.phase < g => {
-                    let s = (g - self.phase) as f64 / g as f64;
-                    let radius = s * jm * rng.random_range(0.0f64..=1.0).sqrt();
-                    let angle = rng.random_range(-std::f64::consts::PI..std::f64::consts::PI);
-                    let turn = s * jd.to_radians() * rng.random_range(-1.0f64..=1.0);
-                    [radius * angle.cos(), radius * angle.sin(), turn]
+                    jitter(rng, (g - self.phase) as f64 / g as f64, jm, jd)
                 }
                 _ => [0.0; 3],
             };
@@ -777,6 +769,15 @@ pub fn catch_throw(
     let lateral = spec.lateral.sample(rng);
     let d_z = spec.d_z.sample(rng);
     spec.throw_with(target, yaw, v_x * flight, v_x, lateral, d_z, rng)
+}
+
+/// A prop's offset `[x, y, yaw]` off its spot: up to `scale · radius_m` away (uniform in a disc)
+/// and turned by up to ±`scale · turn_deg` (the seat's and the pedestal's jitter).
+fn jitter(rng: &mut EnvRng, scale: f64, radius_m: f64, turn_deg: f64) -> [f64; 3] {
+    let radius = scale * radius_m * rng.random_range(0.0f64..=1.0).sqrt();
+    let angle = rng.random_range(-std::f64::consts::PI..std::f64::consts::PI);
+    let turn = scale * turn_deg.to_radians() * rng.random_range(-1.0f64..=1.0);
+    [radius * angle.cos(), radius * angle.sin(), turn]
 }
 
 /// Pushes a pedestal the jitter moved into the character away from the pelvis, 2 cm at a time
