@@ -2,8 +2,8 @@
 # Fits lift to the warehouse, then carry to the new lift, and evaluates both (README "Lift any
 # box" has the figures):
 #   1. `skill train lift.ron`: the keyframe clip, one 0.3 m, 2 kg box on a 0.57 m pedestal
-#      exactly under the clip's hands (LIFT_ITERS, default 0: keep the library's lift, as the
-#      shipped one was made; 800 trains it afresh);
+#      exactly under the clip's hands (LIFT_ITERS, default 0: keep the library's lift, as stop
+#      32's run did; 800 trains it afresh);
 #   2. `skill finetune lift_any_box.ron --from walk,turn_left,turn_right`: the same skill, now
 #      observing the box's size, on the warehouse's pedestals and boxes (0.45–0.75 m, ×0.75–1.25,
 #      2–7 kg), the pedestal up to 0.25 m and ±45° off the clip's spot, gripping hands, half the

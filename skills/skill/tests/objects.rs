@@ -455,7 +455,7 @@ fn lift_any_box_moves_its_pedestal_off_the_clip_spot_before_the_grip_only() {
             let (pl, phase) = (w.placements()[ped], env.task().phase());
             let bx = w.placements()[obj.prop];
             if phase < grip {
-                // The box sits on the pedestal, turned with it; nothing sinks into the pedestal.
+                // The box sits on the pedestal's top; nothing sinks into the pedestal.
                 let (c, _) = object_and_hands(w, obj.prop);
                 assert!((c[0] - pl.pos[0]).abs() < 1e-6 && (c[1] - pl.pos[1]).abs() < 1e-6);
                 assert!(
