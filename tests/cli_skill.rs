@@ -296,3 +296,75 @@ fn meta_deliver_refuses_one_file_for_both_pools() {
     assert!(err.contains("--handovers-out") && err.contains("pool.ron"), "{err}");
     assert!(!same.exists(), "nothing written");
 }
+
+/// The number in `… N successful end poses written to …`.
+fn poses_written(text: &str) -> usize {
+    let line = text.lines().find(|l| l.contains("successful end poses written to")).expect("a pool line");
+    line.split_whitespace().next().and_then(|n| n.parse().ok()).expect("a count")
+}
+
+/// The successes in a `| skill | start | trials | success | …` row (rounded from the rate).
+fn successes(text: &str, start: &str) -> usize {
+    let row = text.lines().find(|l| l.contains(start)).unwrap_or_else(|| panic!("no `{start}` row in {text}"));
+    let cells: Vec<&str> = row.split('|').map(str::trim).collect();
+    let trials: f64 = cells[3].parse().unwrap();
+    let rate: f64 = cells[4].trim_end_matches('%').parse().unwrap();
+    (trials * rate / 100.0).round() as usize
+}
+
+#[test]
+fn skill_eval_takes_its_pool_from_the_trials_pool_from_names() {
+    // The committed sit and turns: from the clip start the sit succeeds far more often than from
+    // the turns' end poses (88 / 55 % over 1000 trials), so the two pools differ in size.
+    let dir = common::temp_dir("cli-pool-from");
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let lib = dir.join("library");
+    for name in ["sit", "turn_left", "turn_right"] {
+        std::fs::create_dir_all(lib.join(name)).unwrap();
+        for file in ["manifest.ron", "policy.safetensors", "end_poses.ron"] {
+            std::fs::copy(root.join("skills/library").join(name).join(file), lib.join(name).join(file)).unwrap();
+        }
+    }
+    let spec = root.join("skills/skill/specs/sit.ron");
+    let eval = |pool_from: &str| {
+        ok(&repertoire(&[
+            "skill",
+            "eval",
+            spec.to_str().unwrap(),
+            "--library",
+            lib.to_str().unwrap(),
+            "--from",
+            "turn_left,turn_right",
+            "--trials",
+            "40",
+            "--batch",
+            "8",
+            "--pool-from",
+            pool_from,
+        ]))
+    };
+    let clip = eval("clip-start");
+    let (from_clip, from_turns) = (successes(&clip, "clip start"), successes(&clip, "end poses of"));
+    assert_ne!(from_clip, from_turns, "the test needs the two starts to differ: {clip}");
+    assert_eq!(poses_written(&clip), from_clip, "{clip}");
+    let pred = eval("predecessors");
+    assert_eq!(poses_written(&pred), from_turns, "{pred}");
+    let pool = std::fs::read_to_string(lib.join("sit/end_poses.ron")).unwrap();
+    assert_eq!(pool.matches("height:").count(), from_turns, "the file holds the predecessors' successes");
+
+    // Without predecessors there is nothing to take the pool from.
+    let out = repertoire(&[
+        "skill",
+        "eval",
+        root.join("skills/skill/specs/walk.ron").to_str().unwrap(),
+        "--library",
+        lib.to_str().unwrap(),
+        "--trials",
+        "2",
+        "--pool-from",
+        "predecessors",
+    ]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--pool-from predecessors") && err.contains("walk.ron"), "{err}");
+}

@@ -26,6 +26,7 @@ pub const KNOWN_SKILLS: &[&str] = &[
     "turn_right_wide",
     "sit",
     "sit_from_wide",
+    "stand",
     "lift",
     "carry",
     "put_down",

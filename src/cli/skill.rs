@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
-use clap::{Args, Subcommand};
+use clap::{Args, Subcommand, ValueEnum};
 use repertoire_skill::eval::{StartFrom, evaluate, pool_of};
 use repertoire_skill::library;
 use repertoire_skill::spec::Init;
@@ -102,7 +102,22 @@ pub enum SkillCommand {
         /// Most end poses kept in the pool (an even spread over the successful trials).
         #[arg(long, default_value_t = 200)]
         pool_size: usize,
+        /// Which trials' successful end states make the pool: those started at the clip
+        /// (the paper's end poses), or those started from the predecessors' end poses (a
+        /// skill whose clip start is trivial, like `stand`, whose point is where the chain
+        /// before it leaves the character).
+        #[arg(long, value_enum, default_value_t = PoolFrom::ClipStart)]
+        pool_from: PoolFrom,
     },
+}
+
+/// The trials `skill eval` takes its end-pose pool from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum PoolFrom {
+    /// Trials started at the clip (reference-state initialisation).
+    ClipStart,
+    /// Trials started from the predecessors' end poses (`--from` or the spec's pools).
+    Predecessors,
 }
 
 /// Options shared by `train` and `finetune`.
@@ -170,8 +185,8 @@ pub fn run(cmd: SkillCommand) -> Result<()> {
         SkillCommand::Play { spec, record, html, library, seed, from, web } => {
             play_cmd(&spec, &record, html.as_deref(), &library, seed, from, web.as_deref())
         }
-        SkillCommand::Eval { spec, library, trials, batch, seed, from, no_pool, pool_size } => {
-            eval_cmd(&spec, &library, trials, batch, seed, from, no_pool, pool_size)
+        SkillCommand::Eval { spec, library, trials, batch, seed, from, no_pool, pool_size, pool_from } => {
+            eval_cmd(&spec, &library, trials, batch, seed, from, (!no_pool).then_some((pool_from, pool_size)))
         }
     }
 }
@@ -261,8 +276,7 @@ fn eval_cmd(
     batch: usize,
     seed: u64,
     from: Vec<String>,
-    no_pool: bool,
-    pool_size: usize,
+    pool: Option<(PoolFrom, usize)>,
 ) -> Result<()> {
     let mut spec = SpecFile::load(spec_path)?;
     let predecessors = if from.is_empty() {
@@ -275,16 +289,27 @@ fn eval_cmd(
     };
     if !predecessors.is_empty() {
         spec.spec.init = Init::pools(predecessors.clone());
+    } else if matches!(pool, Some((PoolFrom::Predecessors, _))) {
+        bail!(
+            "{}: --pool-from predecessors needs predecessors (--from, or init Pools in the spec)",
+            spec_path.display()
+        );
     }
     let setup = SkillSetup::new(spec, library)?;
     let name = setup.spec.spec.name.clone();
     let mut skill = library::load(library, &name)?;
     let mut rows = Vec::new();
-    let (report, ends) = evaluate(&setup, &mut skill, StartFrom::ClipStart, trials, batch, seed)?;
+    let (report, mut ends) = evaluate(&setup, &mut skill, StartFrom::ClipStart, trials, batch, seed)?;
     rows.push(report);
     if !predecessors.is_empty() {
         match evaluate(&setup, &mut skill, StartFrom::Predecessors, trials, batch, seed + 1) {
-            Ok((report, _)) => rows.push(report),
+            Ok((report, from_ends)) => {
+                rows.push(report);
+                if matches!(pool, Some((PoolFrom::Predecessors, _))) {
+                    ends = from_ends;
+                }
+            }
+            Err(e) if matches!(pool, Some((PoolFrom::Predecessors, _))) => return Err(e.into()),
             Err(e) => println!("not evaluated from predecessors' end poses: {e}"),
         }
     }
@@ -314,7 +339,7 @@ fn eval_cmd(
             setup.spec.spec.episode_s
         );
     }
-    if !no_pool {
+    if let Some((_, pool_size)) = pool {
         let step = ends.len().div_ceil(pool_size.max(1)).max(1);
         let kept: Vec<_> = ends.into_iter().step_by(step).collect();
         let pool = pool_of(&setup, kept);
