@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Trains the default skill library (walk, walk_to, turn_left, turn_right, the wide turns, sit) from scratch and evaluates
+# Trains the default skill library (walk, walk_to, turn_left, turn_right, the wide turns, stand, sit) from scratch and evaluates
 # it: the shipped skills/library is this script's output, and every skill's manifest records
 # the whole lineage (each stage's command, code version, figures and resulting policy hash).
 # The sitting paper's two stages, along the skill graph walk → turn → walk / sit:
@@ -25,6 +25,7 @@
 #           poses (WALK_TO_FINETUNE_ITERS, 800); LIBRARY-stage1 gets walk_to grown the same
 #           way from its own stage-one walk, without the fine-tune;
 #        f. the wide (±99°) turns, `scripts/train-wide-turns.sh` (its own settings there);
+#        g. the stand, and the sit fitted to it, `scripts/train-stand.sh` (its settings there);
 #   3. `skill eval` over TRIALS trials from the clip start and from the predecessors' end poses
 #      after each stage; every table is also collected in LIBRARY/evals.md.
 # Usage: bash scripts/train-library.sh [LIBRARY] — env: TRIALS (1000), TURN_FINETUNE_ITERS (400),
@@ -99,4 +100,6 @@ eval_skill "$specs/walk_to.ron" --from turn_left,turn_right --no-pool
 mv "$evals" "$lib/evals.md"
 # f. the wide (±99°) turns, fine-tuned from walk_to's end poses (and into LIBRARY-stage1).
 bash scripts/train-wide-turns.sh "$lib"
+# g. the stand between the turns and the sit, and the sit from its end poses.
+bash scripts/train-stand.sh "$lib"
 echo "library written to $lib (evaluations in $lib/evals.md)"

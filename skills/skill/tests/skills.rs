@@ -811,3 +811,25 @@ fn a_skill_grown_from_another_acts_as_it_until_trained_and_keeps_its_lineage() {
     let err = err.to_string();
     assert!(err.contains("`sit`") && err.contains("`carry`") && err.contains("policy.safetensors"), "{err}");
 }
+
+#[test]
+fn the_stand_pays_fully_for_standing_still_and_little_for_moving() {
+    // `stand.ron`: a still clip, so walk stage one's root-velocity match pays for being at rest.
+    let s = setup("stand.ron", &Path::new(env!("CARGO_MANIFEST_DIR")).join("../library"));
+    let r = &s.settings.reference;
+    assert!(r.velocity.iter().all(|v| v.iter().all(|c| c.abs() < 1e-9)), "the stand's clip moves");
+    let mut env = s.env();
+    let mut task = ImitationTask::new(s.settings.clone());
+    task.place_at_frame(env.world_mut(), 60, 0.5, 0.5, 1.0);
+    let still = task.score(env.world(), 60);
+    assert!(still.terms[4] > 0.999 && still.terms[0] > 0.999, "standing still: {:?}", &still.terms[..5]);
+    // The same pose moving forward at 1 m/s (a turn's end pose moves about that fast).
+    let qpos = env.world().data().qpos().to_vec();
+    let mut qvel = env.world().data().qvel().to_vec();
+    qvel[0] = 1.0_f64.cos();
+    qvel[1] = 1.0_f64.sin();
+    env.world_mut().set_state(&qpos, &qvel).unwrap();
+    let moving = task.score(env.world(), 60);
+    assert!(moving.terms[4] < 0.05, "moving at 1 m/s still pays {}", moving.terms[4]);
+    assert!(moving.reward < still.reward - 0.3, "{} vs {}", moving.reward, still.reward);
+}
