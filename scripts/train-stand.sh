@@ -8,13 +8,14 @@
 #      critic it saved; evaluated from the clip start and from those end poses, its pool taken
 #      from the trials that started from them (`--pool-from predecessors`: from the clip start
 #      the stand only stands, and every end state is the same);
-#   2. with SIT_STAND_ITERS (default 0: skipped), `sit_reach.ron` fine-tuned from the stand's end
-#      poses and the 56° turns' (SIT_STAND_FRACTION of the episodes, default 0.7), the critic
+#   2. `sit_reach.ron` fine-tuned from the stand's end poses and the 56° turns' (SIT_STAND_ITERS,
+#      2000; 0 skips it; SIT_STAND_FRACTION of the episodes from the pools, 0.7), the critic
 #      warmed up for 100 iterations first (the sit has no saved critic);
-#   3. the sit evaluated from the stand's and from the 56° turns' end poses.
+#   3. the sit evaluated from the stand's end poses (writing its pool, from the clip start) and
+#      from the 56° turns'.
 # Usage: bash scripts/train-stand.sh [LIBRARY] — env: TRIALS (1000), EXTRA (more arguments for
 # every train/finetune). The library's meta-controllers pin every skill's weights, so retrain them
-# afterwards (`repertoire meta train scenes/sit_stand.ron --library LIBRARY --iterations 2400`).
+# afterwards (`repertoire meta train --library LIBRARY --iterations 2400`: the default scenes/sit.ron, stop 34).
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 lib="${1:-skills/library}"
@@ -27,11 +28,11 @@ if [ -n "${STAND_ITERS:-}" ]; then iters=(--iterations "$STAND_ITERS"); fi
 "$bin" skill finetune "$specs/stand.ron" --from "$preds" --fraction 0.85 \
   --iterations "${STAND_FINETUNE_ITERS:-1200}" --library "$lib" "${extra[@]}"
 eval_skill "$specs/stand.ron" --from "$preds" --pool-from predecessors
-if [ "${SIT_STAND_ITERS:-0}" != 0 ]; then
+if [ "${SIT_STAND_ITERS:-2000}" != 0 ]; then
   "$bin" skill finetune "$specs/sit_reach.ron" --from stand,turn_left,turn_right \
-    --fraction "${SIT_STAND_FRACTION:-0.7}" --iterations "$SIT_STAND_ITERS" --critic-warmup 100 \
+    --fraction "${SIT_STAND_FRACTION:-0.7}" --iterations "${SIT_STAND_ITERS:-2000}" --critic-warmup 100 \
     --library "$lib" "${extra[@]}"
 fi
-eval_skill "$specs/sit.ron" --from stand --no-pool
+eval_skill "$specs/sit.ron" --from stand
 eval_skill "$specs/sit.ron" --from turn_left,turn_right --no-pool
 echo "stand added to $lib (evaluations appended to $evals)"
