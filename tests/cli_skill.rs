@@ -221,7 +221,7 @@ fn the_ablation_study_plans_one_described_run_per_variant_and_seed() {
         "--iterations",
         "5",
     ]));
-    assert!(text.contains("10 runs planned"), "{text}");
+    assert!(text.contains("11 runs planned"), "{text}");
     let plan = std::fs::read_to_string(quick.join("runs/full-model-s7/plan.ron")).expect("plan file");
     let compact: String = plan.split_whitespace().collect();
     assert!(compact.contains("\"--iterations\",\"5\"") && compact.contains("\"--seed\",\"7\""), "{plan}");
