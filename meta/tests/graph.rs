@@ -8,8 +8,13 @@ use repertoire_scenes::ScenarioFile;
 fn the_default_graph_follows_the_scenario() {
     let s = ScenarioFile::builtin_default();
     let g = SkillGraph::of(&s.scenario);
-    assert_eq!(g.names(), ["walk_to", "turn_left", "turn_right", "turn_left_wide", "turn_right_wide", "sit"]);
-    let (walk, sit) = (0, 5);
+    assert_eq!(g.names(), ["walk_to", "turn_left", "turn_right", "turn_left_wide", "turn_right_wide", "stand", "sit"]);
+    let (walk, stand, sit) = (0, 5, 6);
+    // The stand (stop 34) follows walk_to and every turn and leads only to the sit.
+    assert!(g.is_allowed(Some(walk), stand) && g.is_allowed(Some(stand), sit) && !g.is_allowed(None, stand));
+    for other in 0..=4 {
+        assert!(g.is_allowed(Some(other), stand) && !g.is_allowed(Some(stand), other), "{}", g.names()[other]);
+    }
     assert!(g.is_allowed(None, walk) && !g.is_allowed(None, sit), "episodes do not start seated");
     assert!(!g.is_allowed(Some(walk), sit), "sit only after a turn");
     for turn in 1..=4 {

@@ -15,6 +15,8 @@ use repertoire_scenes::{ScenarioFile, WorldModel};
 use repertoire_skill::train::TrainOptions;
 use repertoire_skill::{SkillSetup, SpecFile};
 
+mod support;
+
 /// A library with walk_to, the four turns and sit, each trained for one tiny iteration.
 fn library() -> &'static Path {
     static LIB: OnceLock<PathBuf> = OnceLock::new();
@@ -32,8 +34,15 @@ fn library() -> &'static Path {
     })
 }
 
+/// The default scenario without its stand (`support::without_stand`): the tests' library and
+/// option indices are the six skills before it.
+fn sit_scenario() -> ScenarioFile {
+    let builtin = ScenarioFile::builtin_default();
+    ScenarioFile::parse(&builtin.path, support::without_stand(&builtin.text)).expect("the scenario parses")
+}
+
 fn setup(graph: Option<SkillGraph>) -> Arc<MetaSetup> {
-    let model = Arc::new(WorldModel::build(ScenarioFile::builtin_default()).expect("scene"));
+    let model = Arc::new(WorldModel::build(sit_scenario()).expect("scene"));
     let graph = graph.unwrap_or_else(|| SkillGraph::of(&model.scenario.scenario));
     Arc::new(MetaSetup::new(model, library(), graph).expect("meta setup"))
 }
@@ -608,7 +617,7 @@ fn a_fall_forfeits_the_approach_reward_only_when_the_scenario_says_so() {
 
 /// The default scenario with sit guarded to within `within_m` of the chair.
 fn guarded_setup(within_m: f64) -> Arc<MetaSetup> {
-    let builtin = ScenarioFile::builtin_default();
+    let builtin = sit_scenario();
     let edges_end = "(\"turn_left_wide\", \"sit\"), (\"turn_right_wide\", \"sit\"),\n        ],";
     assert!(builtin.text.contains(edges_end), "the default graph's last edges moved");
     let text = builtin.text.replace(

@@ -30,13 +30,13 @@ fn worst_trials_are_recorded_as_they_ran() {
         assert_eq!(file.file_name().unwrap().to_string_lossy(), format!("trial_{}_{}.rec", trial.zone, trial.index));
         assert_eq!(
             rec.header.skills,
-            ["walk_to", "turn_left", "turn_right", "turn_left_wide", "turn_right_wide", "sit"]
+            ["walk_to", "turn_left", "turn_right", "turn_left_wide", "turn_right_wide", "stand", "sit"]
         );
         // Frame 0 is the start; then one frame per control tick until the trial ended.
         let ticks = (trial.seconds * rec.header.control_hz).round() as usize;
         assert_eq!(rec.frames(), ticks + 1, "{}", file.display());
         let last_min = rec.terms[(rec.frames() - 1) * rec.header.terms.len() + 3];
         assert!((f64::from(last_min) - trial.min_distance).abs() < 1e-5, "{last_min} vs {}", trial.min_distance);
-        assert!(rec.skill.iter().all(|&s| (0..6).contains(&s)));
+        assert!(rec.skill.iter().all(|&s| (0..7).contains(&s)));
     }
 }
