@@ -287,9 +287,10 @@ fn eval_cmd(
     } else {
         from
     };
+    let pool_from_predecessors = matches!(pool, Some((PoolFrom::Predecessors, _)));
     if !predecessors.is_empty() {
         spec.spec.init = Init::pools(predecessors.clone());
-    } else if matches!(pool, Some((PoolFrom::Predecessors, _))) {
+    } else if pool_from_predecessors {
         bail!(
             "{}: --pool-from predecessors needs predecessors (--from, or init Pools in the spec)",
             spec_path.display()
@@ -305,11 +306,11 @@ fn eval_cmd(
         match evaluate(&setup, &mut skill, StartFrom::Predecessors, trials, batch, seed + 1) {
             Ok((report, from_ends)) => {
                 rows.push(report);
-                if matches!(pool, Some((PoolFrom::Predecessors, _))) {
+                if pool_from_predecessors {
                     ends = from_ends;
                 }
             }
-            Err(e) if matches!(pool, Some((PoolFrom::Predecessors, _))) => return Err(e.into()),
+            Err(e) if pool_from_predecessors => return Err(e.into()),
             Err(e) => println!("not evaluated from predecessors' end poses: {e}"),
         }
     }
