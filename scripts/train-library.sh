@@ -26,6 +26,8 @@
 #           way from its own stage-one walk, without the fine-tune;
 #        f. the wide (±99°) turns, `scripts/train-wide-turns.sh` (its own settings there);
 #        g. the stand, and the sit fitted to it, `scripts/train-stand.sh` (its settings there);
+#      the shipped sit then had one more round, from where a controller trained over this
+#      library hands over to it (`scripts/train-sit-handovers.sh`, after `meta train`);
 #   3. `skill eval` over TRIALS trials from the clip start and from the predecessors' end poses
 #      after each stage; every table is also collected in LIBRARY/evals.md.
 # Usage: bash scripts/train-library.sh [LIBRARY] — env: TRIALS (1000), TURN_FINETUNE_ITERS (400),

@@ -7,7 +7,8 @@
 #      to sit, chair where it left it, in RUN/handovers.ron; a second delivery (seed 11, half as
 #      many episodes) is held out for the evaluation, RUN/handovers-held.ron;
 #   2. `skill finetune sit_reach.ron --from RUN/handovers.ron,stand --fraction 0.8` for
-#      SIT_HANDOVER_ITERS (2000; 0 skips it), the critic warmed up for 100 iterations first;
+#      SIT_HANDOVER_ITERS (2000; 0 skips it), the critic warmed up for CRITIC_WARMUP iterations
+#      first (100);
 #   3. the sit evaluated from the clip start, from the stand's end poses (writing its pool) and
 #      from the held-out handovers;
 #   4. `meta train scenes/sit.ron --iterations META_ITERS` (2400; 0 skips both)
@@ -32,7 +33,7 @@ deliver --trials $(((deliver_trials + 1) / 2)) --seed 11 --out "$run/delivered-h
 
 if [ "${SIT_HANDOVER_ITERS:-2000}" != 0 ]; then
   "$bin" skill finetune "$specs/sit_reach.ron" --from "$run/handovers.ron,stand" --fraction 0.8 \
-    --iterations "${SIT_HANDOVER_ITERS:-2000}" --critic-warmup 100 --library "$lib" "${extra[@]}"
+    --iterations "${SIT_HANDOVER_ITERS:-2000}" --critic-warmup "${CRITIC_WARMUP:-100}" --library "$lib" "${extra[@]}"
 fi
 eval_skill "$specs/sit.ron" --no-pool
 eval_skill "$specs/sit.ron" --from stand

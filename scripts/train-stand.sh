@@ -15,7 +15,8 @@
 #      from the 56° turns'.
 # Usage: bash scripts/train-stand.sh [LIBRARY] — env: TRIALS (1000), EXTRA (more arguments for
 # every train/finetune). The library's meta-controllers pin every skill's weights, so retrain them
-# afterwards (`repertoire meta train --library LIBRARY --iterations 2400`: the default scenes/sit.ron, stop 34).
+# afterwards (`repertoire meta train --library LIBRARY --iterations 2400`: the default scenes/sit.ron, stop 34),
+# and then fit the sit to where that controller hands over (`scripts/train-sit-handovers.sh`, stop 35).
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 lib="${1:-skills/library}"
