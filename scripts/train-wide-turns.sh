@@ -19,16 +19,8 @@
 #      (`meta train --iterations 2400`) seats 10.8 / 6.2 / 5.0 % against the shipped 14.3 / 8.6 /
 #      4.4 %, and the planner over it 31 / 28 / 21 % (100 trials per zone) against 38 / 16 / 19 %:
 #      the sit, not the walk, bounds both, so the shipped library keeps its walk_to;
-#   5. with SIT_HANDOVER_ITERS (default 0: skipped), the sit fine-tuned from where the planner
-#      starts it: `meta deliver --planner` (HANDOVER_TRIALS episodes per zone, default 100)
-#      writes the states at the planner's switches to sit, and `sit_reach.ron` is fine-tuned
-#      with 80 % of its episodes from them and the 56° turns' end poses, the critic warmed up
-#      for 100 iterations first (the sit has no saved critic). Measured in stop 29 (2000
-#      iterations, 23.0 min sharing the 2-core machine): 88.4 → 94.6 % from the clip start,
-#      55.0 → 61.2 % from the 56° turns, but 23.9 → 14.6 % from a held-out delivery's
-#      handovers; the planner over it seats 43.3 / 26.7 / 25.0 % (60 trials per zone) against
-#      38.3 / 24.3 / 21.7 %, and the controller retrained over it (`meta train --iterations
-#      2400`) 16.0 / 3.5 / 1.8 % against the shipped 14.3 / 8.6 / 4.4 %. Not shipped.
+#   (stop 29's fifth step, the sit fine-tuned from where the planner hands over to it, is now
+#   `PLANNER=1 bash scripts/train-sit-handovers.sh`, with its figures there.)
 # Usage: bash scripts/train-wide-turns.sh [LIBRARY] — env: TRIALS (1000), EXTRA (more arguments
 # for every train/finetune, e.g. "--envs 8"). The library's meta-controller pins every skill's
 # weights, so retrain it afterwards (`repertoire meta train --library LIBRARY --iterations 2400`).
@@ -57,15 +49,5 @@ if [ "${WALK_TO_TURNS_ITERS:-0}" != 0 ]; then
     --library "$lib" "${extra[@]}"
   eval_skill "$specs/walk_to.ron"
   eval_skill "$specs/walk_to.ron" --from "$turns" --no-pool
-fi
-if [ "${SIT_HANDOVER_ITERS:-0}" != 0 ]; then
-  handovers=runs/delivered-sit-handovers.ron
-  "$bin" meta deliver --planner --spec "$specs/sit_reach.ron" --library "$lib" \
-    --trials "${HANDOVER_TRIALS:-100}" --max-offset 0.8 --max-turn 90 \
-    --out runs/delivered-sit.ron --handovers-out "$handovers"
-  "$bin" skill finetune "$specs/sit_reach.ron" --from "$handovers,turn_left,turn_right" --fraction 0.8 \
-    --iterations "$SIT_HANDOVER_ITERS" --critic-warmup 100 --library "$lib" "${extra[@]}"
-  eval_skill "$specs/sit.ron" --from turn_left,turn_right --no-pool
-  eval_skill "$specs/sit.ron" --from "$handovers" --no-pool
 fi
 echo "wide turns added to $lib (evaluations appended to $evals)"
