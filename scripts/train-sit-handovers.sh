@@ -4,15 +4,14 @@
 # `scripts/train-library.sh` and a first `repertoire meta train --library LIBRARY --iterations 2400`:
 #   1. `meta deliver --spec sit_reach.ron --max-offset 0.8 --max-turn 90` plays the controller
 #      (with PLANNER=1 the search-based planner, `--planner`, instead; DELIVER_TRIALS episodes
-#      per zone, 200, seed 7) and keeps the states at which it switches
-#      to sit, chair where it left it, in RUN/handovers.ron; a second delivery (seed 11, half as
-#      many episodes) is held out for the evaluation, RUN/handovers-held.ron;
+#      per zone, 200, seed 7) and keeps the states at which it switches to sit, chair where it
+#      left it, in RUN/handovers.ron; a second delivery (seed 11, half as many episodes) is held
+#      out for the evaluation, RUN/handovers-held.ron;
 #   2. `skill finetune sit_reach.ron --from RUN/handovers.ron,SIT_HANDOVER_FROM --fraction 0.8`
-#      (SIT_HANDOVER_FROM: the other pools, stand) for
-#      SIT_HANDOVER_ITERS (2000; 0 skips it), the critic warmed up for CRITIC_WARMUP iterations
-#      first (100);
-#   3. the sit evaluated from the clip start, from SIT_HANDOVER_FROM's end poses (writing its
-#      pool) and from the held-out handovers;
+#      (SIT_HANDOVER_FROM: the other pools, stand) for SIT_HANDOVER_ITERS (2000; 0 skips it),
+#      the critic warmed up for CRITIC_WARMUP iterations first (100);
+#   3. the sit evaluated from SIT_HANDOVER_FROM's end poses (writing its pool) and from the
+#      held-out handovers (each table has the clip-start row too);
 #   4. `meta train scenes/sit.ron --iterations META_ITERS` (2400; 0 skips both)
 #      into LIBRARY/meta, then `meta eval --trials META_TRIALS` (1000 per zone).
 # Stop 29 ran it from the planner's handovers, before the stand (PLANNER=1 DELIVER_TRIALS=100
@@ -30,9 +29,10 @@ lib="${1:-skills/library}"
 evals="$lib/evals.md"
 run="${RUN:-runs/sit-handovers}"
 deliver_trials="${DELIVER_TRIALS:-200}"
-mkdir -p "$run"
-
 from="${SIT_HANDOVER_FROM:-stand}"
+sit_iters="${SIT_HANDOVER_ITERS:-2000}"
+meta_iters="${META_ITERS:-2400}"
+mkdir -p "$run"
 planner=()
 if [ "${PLANNER:-0}" != 0 ]; then planner=(--planner); fi
 
@@ -44,16 +44,15 @@ deliver --trials "$deliver_trials" --seed 7 --out "$run/delivered.ron" --handove
 deliver --trials $(((deliver_trials + 1) / 2)) --seed 11 --out "$run/delivered-held.ron" \
   --handovers-out "$run/handovers-held.ron"
 
-if [ "${SIT_HANDOVER_ITERS:-2000}" != 0 ]; then
+if [ "$sit_iters" != 0 ]; then
   "$bin" skill finetune "$specs/sit_reach.ron" --from "$run/handovers.ron,$from" --fraction 0.8 \
-    --iterations "${SIT_HANDOVER_ITERS:-2000}" --critic-warmup "${CRITIC_WARMUP:-100}" --library "$lib" "${extra[@]}"
+    --iterations "$sit_iters" --critic-warmup "${CRITIC_WARMUP:-100}" --library "$lib" "${extra[@]}"
 fi
-eval_skill "$specs/sit.ron" --no-pool
 eval_skill "$specs/sit.ron" --from "$from"
 eval_skill "$specs/sit.ron" --from "$run/handovers-held.ron" --no-pool
 
-if [ "${META_ITERS:-2400}" != 0 ]; then
-  "$bin" meta train scenes/sit.ron --library "$lib" --iterations "${META_ITERS:-2400}" \
+if [ "$meta_iters" != 0 ]; then
+  "$bin" meta train scenes/sit.ron --library "$lib" --iterations "$meta_iters" \
     --run-dir "$run/meta-train"
   "$bin" meta eval scenes/sit.ron --library "$lib" --trials "${META_TRIALS:-1000}"
 fi
