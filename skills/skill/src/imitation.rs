@@ -267,10 +267,14 @@ impl ImitationTask {
             world
                 .set_free_prop(obj.prop, [pl.pos[0], pl.pos[1], pl.top + half], yaw_quat(pl.yaw), zero, zero)
                 .expect("the object is a validated free prop");
-        } else if let (Some(c), Goal::Catch { throw, .. }) = (obj.catch_frame, &settings.goal) {
+        } else if let (Some(c), Goal::Catch { throw, free_timing, .. }) = (obj.catch_frame, &settings.goal) {
             let (target, yaw) = at(c);
-            let flight = c.saturating_sub(f).max(1) as f64 * r.dt;
-            let throw = catch_throw(throw, target, yaw, flight, rng);
+            let throw = if *free_timing {
+                throw.sample(target, yaw, rng)
+            } else {
+                let flight = c.saturating_sub(f).max(1) as f64 * r.dt;
+                catch_throw(throw, target, yaw, flight, rng)
+            };
             throw.launch(world, obj.prop).expect("catch throws are validated");
         } else {
             world.set_free_prop(obj.prop, at(f).0, still, zero, zero).expect("the object is a validated free prop");

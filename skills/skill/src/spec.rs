@@ -282,7 +282,8 @@ pub enum Goal {
     /// Catch: the ball `prop` is thrown (per `throw`, from in front) at the clip's hands'
     /// midpoint at `catch_s`, arriving then: its forward speed is drawn from `throw.v_x` and
     /// its distance is what that speed covers in the time left (the spec's `distance_m` is not
-    /// used); starts at or after `catch_s` (less than 0.25 s before) put it in the hands.
+    /// used; with `free_timing` it is, and the ball arrives when it arrives); starts at or after
+    /// `catch_s` (less than 0.25 s before) put it in the hands.
     /// Reward `weight · hold` as for [`Goal::Lift`]; the ball on the floor ends the episode.
     /// Done: off the floor, in a hand or within 0.2 m of the hands' midpoint.
     Catch {
@@ -298,6 +299,11 @@ pub enum Goal {
         /// Sharpness of the hold term (1/m²).
         #[serde(default = "default_hold_scale")]
         scale: f64,
+        /// Throw as a scenario does (the toss): the distance drawn from `throw.distance_m`
+        /// and the ball arriving whenever that takes at its speed (d/v_x), not at `catch_s`.
+        /// The policy must then time the catch from the ball's pose and velocity.
+        #[serde(default, skip_serializing_if = "is_false")]
+        free_timing: bool,
     },
 }
 
@@ -472,6 +478,10 @@ pub struct SkillSpec {
     /// each skill's own while it plays. 0 (the default) lets go.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub grip: f64,
+}
+
+fn is_false(b: &bool) -> bool {
+    !*b
 }
 
 fn is_zero(x: &f64) -> bool {

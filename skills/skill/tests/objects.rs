@@ -45,7 +45,17 @@ const OBJECT: usize = 6;
 
 #[test]
 fn object_specs_load_and_replay_their_clips() {
-    for spec in ["lift.ron", "lift_any_box.ron", "carry.ron", "carry_any_box.ron", "put_down.ron", "catch.ron"] {
+    for spec in [
+        "lift.ron",
+        "lift_any_box.ron",
+        "carry.ron",
+        "carry_any_box.ron",
+        "put_down.ron",
+        "catch.ron",
+        "catch_grip.ron",
+        "catch_heavy.ron",
+        "catch_toss.ron",
+    ] {
         let s = setup(spec);
         let obj = s.settings.object.as_ref().unwrap_or_else(|| panic!("{spec}: no object setup"));
         assert!(!obj.held.is_empty(), "{spec}: the clip never holds its object");
@@ -274,6 +284,57 @@ fn catch_throws_the_ball_at_the_hands_and_ends_when_it_lands() {
     env.world_mut().set_free_prop(obj.prop, [2.0, 0.0, 0.119], [1.0, 0.0, 0.0, 0.0], [0.0; 3], [0.0; 3]).unwrap();
     let landed = task.score(env.world(), f);
     assert!(landed.terminated && landed.terms[GOAL] == 0.0, "{landed:?}");
+}
+
+#[test]
+fn catch_toss_throws_as_the_toss_does_and_the_ball_arrives_when_it_arrives() {
+    let s = setup("catch_toss.ron");
+    assert_eq!(s.spec.spec.grip, 1.0, "catch_toss grips");
+    let obj = s.settings.object.clone().expect("object");
+    let c = obj.catch_frame.expect("catch frame");
+    let r = &s.settings.reference;
+    let dt = 1.0 / f64::from(s.model.scenario.scenario.rates.control_hz);
+    let mut env = s.env();
+    let mut task = ImitationTask::new(s.settings.clone());
+    let mut arrivals = Vec::new();
+    // Starts before the catch throw (each frame draws its own throw).
+    for f in 0..6 {
+        task.place_at_frame(env.world_mut(), f, 0.0, 0.0, 0.0);
+        let mut w = env.world().model().new_world();
+        let mut snap = Vec::new();
+        env.world().snapshot(&mut snap);
+        w.restore(&snap).unwrap();
+        let target = [r.hands[c][0] - r.root_pos[f][0], r.hands[c][1] - r.root_pos[f][1], r.hands[c][2]];
+        let (ball0, _) = object_and_hands(&w, obj.prop);
+        // Launched from the toss's distance (2.8–3.2 m in front of the catch point; `target`
+        // is the clip's catch point to within a few cm), not from wherever its speed would
+        // have had it arrive at the clip's catch.
+        let (d, slack) = (ball0[0] - target[0], 0.1);
+        assert!(
+            (2.8 - slack..=3.2 + slack).contains(&d) && (ball0[1] - target[1]).abs() < slack,
+            "frame {f}: launched {d:.3} m out: {ball0:?}"
+        );
+        let v = w.prop_velocity_relative(obj.prop);
+        let v_x = -v[0];
+        assert!((1.5..=4.5).contains(&v_x) && v[1].abs() <= 0.75 + 1e-9, "frame {f}: ball velocity {v:?}");
+        // It crosses the catch point's line at d / v_x, the toss's t_hit.
+        let ctrl = r.joints_at(f).to_vec();
+        let mut crossed = None;
+        for k in 1..=((d / v_x / dt) as usize + 10) {
+            w.step(&ctrl).unwrap();
+            let (b, _) = object_and_hands(&w, obj.prop);
+            if b[0] <= target[0] {
+                crossed = Some(k as f64 * dt);
+                break;
+            }
+        }
+        let t = crossed.expect("the ball reaches the catch point's line");
+        assert!((t - d / v_x).abs() <= slack / v_x + dt, "frame {f}: crossed at {t:.3} s, t_hit {:.3} s", d / v_x);
+        arrivals.push(f as f64 * dt + t);
+    }
+    // Not at the clip's catch every time: the arrivals spread with the throws.
+    let (lo, hi) = arrivals.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), &t| (lo.min(t), hi.max(t)));
+    assert!(hi - lo > 0.1, "every ball arrives at {lo:.3}–{hi:.3} s (the clip catches at {:.3} s)", c as f64 * dt);
 }
 
 #[test]
