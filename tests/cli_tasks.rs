@@ -38,6 +38,17 @@ fn meta_commands_name_the_missing_warehouse_and_toss_skills() {
             assert!(err.contains(file) && err.contains(missing) && err.contains("--skills"), "{cmd} {file}: {err}");
         }
     }
+    // The toss's graph starts in catch: leaving catch out is refused before any training.
+    let out =
+        repertoire(&["meta", "train", "scenes/toss.ron", "--library", &lib, "--skills", "walk,turn_left,turn_right"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success()
+            && err.contains("scenes/toss.ron")
+            && err.contains("start skill")
+            && err.contains("catch"),
+        "{err}"
+    );
 }
 
 #[test]

@@ -41,10 +41,20 @@ impl SkillGraph {
     }
 
     /// This graph restricted to `keep` (in this graph's order): the "one turn direction only"
-    /// ablation. `Err` names a skill the graph lacks.
+    /// ablation. `Err` names a skill the graph lacks, or the start skills when `keep` drops them
+    /// all (no episode could start).
     pub fn restricted(&self, keep: &[String]) -> Result<Self, String> {
         if let Some(missing) = keep.iter().find(|k| self.index(k).is_none()) {
             return Err(format!("skill `{missing}` is not in the graph ({})", self.names().join(", ")));
+        }
+        let starts: Vec<&str> =
+            self.names().into_iter().zip(&self.start).filter(|(_, s)| **s).map(|(n, _)| n).collect();
+        if !starts.iter().any(|s| keep.iter().any(|k| k == s)) {
+            return Err(format!(
+                "the skills kept ({}) leave out every start skill of the graph ({}): no episode could start; keep one of them, or give a fixed order with --chain",
+                keep.join(", "),
+                starts.join(", ")
+            ));
         }
         let graph = self.graph.filter_map(|_, name| keep.contains(name).then(|| name.clone()), |_, &()| Some(()));
         let start = self

@@ -58,3 +58,22 @@ fn restricting_the_graph_keeps_its_edges_among_the_kept_skills() {
     assert!(left.is_allowed(None, 0) && !left.is_allowed(None, 2));
     assert!(g.restricted(&["fly".into()]).is_err());
 }
+
+#[test]
+fn the_toss_starts_in_catch_and_puts_down_only_after_it() {
+    let s = ScenarioFile::load(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/toss.ron")).unwrap();
+    let g = SkillGraph::of(&s.scenario);
+    assert_eq!(g.names(), ["walk", "turn_left", "turn_right", "catch", "put_down"]);
+    let (walk, catch, put_down) = (0, 3, 4);
+    for k in 0..g.len() {
+        assert_eq!(g.is_allowed(None, k), k == catch, "the ball is in the air at the start: {}", g.names()[k]);
+        assert!(!g.is_allowed(Some(k), catch) || k == catch, "no second catch after {}", g.names()[k]);
+    }
+    assert!(
+        g.is_allowed(Some(catch), walk) && g.is_allowed(Some(catch), put_down) && g.is_allowed(Some(walk), put_down)
+    );
+    // Dropping catch leaves no skill an episode could start with: refused, naming it.
+    let err = g.restricted(&["walk".into(), "turn_left".into(), "turn_right".into()]).unwrap_err();
+    assert!(err.contains("start skill") && err.contains("catch") && err.contains("--chain"), "{err}");
+    assert!(g.restricted(&["catch".into(), "put_down".into()]).is_ok());
+}

@@ -351,7 +351,9 @@ pub fn setup(file: Option<&PathBuf>, library: &Path, chain: &[String], skills: &
     let graph = if !chain.is_empty() {
         SkillGraph::chain(&chain.iter().map(String::as_str).collect::<Vec<_>>())
     } else if !skills.is_empty() {
-        SkillGraph::of(&model.scenario.scenario).restricted(skills).map_err(anyhow::Error::msg)?
+        SkillGraph::of(&model.scenario.scenario)
+            .restricted(skills)
+            .map_err(|e| anyhow::anyhow!("{}: --skills: {e}", model.scenario.path.display()))?
     } else {
         SkillGraph::of(&model.scenario.scenario)
     };
