@@ -4,7 +4,7 @@
 # "Catch with gripping hands, and the toss (stop 37)" has the figures):
 #   0. `catch.ron`: the keyframe clip, reference-state starts (most already hold the ball), a
 #      0.5 kg ball timed to reach the clip's hands when it catches, no grip (CATCH_ITERS, default
-#      0: start from `skills/library-stage1/catch`, the policy this trained at stop 25 and the
+#      0: start from `skills/library-stage1/catch`, the policy this trained first and the
 #      library's catch until stop 37, copied into LIBRARY; 800 trains it afresh);
 #   1. `catch_grip.ron`: gripping hands (`grip: 1.0`) and every episode a throw from the clip's
 #      first frame (CATCH_GRIP_ITERS);
