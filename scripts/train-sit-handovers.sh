@@ -14,6 +14,11 @@
 #      held-out handovers (each table has the clip-start row too);
 #   4. `meta train scenes/sit.ron --iterations META_ITERS` (2400; 0 skips both)
 #      into LIBRARY/meta, then `meta eval --trials META_TRIALS` (1000 per zone).
+#   5. for each SEED:ITERATIONS of META_MORE ("2:1600 2:1600"; "" skips them), `meta train
+#      scenes/sit.ron --warm-start LIBRARY/meta --no-curriculum --learning-rate 1.5e-4 --seed SEED
+#      --iterations ITERATIONS`: another run from that controller with every zone open, into
+#      LIBRARY/meta again, then `meta eval` as in 4 (stop 38, the shipped controller: 53.0 /
+#      33.0 / 16.5 → 56.7 / 37.7 / 19.3 → 58.4 / 40.7 / 21.1 % seated, front / sides / behind).
 # Stop 29 ran it from the planner's handovers, before the stand (PLANNER=1 DELIVER_TRIALS=100
 # SIT_HANDOVER_FROM=turn_left,turn_right META_ITERS=0; 2000 iterations, 23.0 min sharing the 2-core
 # machine): 88.4 → 94.6 % from the clip start, 55.0 → 61.2 % from the 56° turns, but 23.9 → 14.6 %
@@ -22,7 +27,10 @@
 # against the then shipped 14.3 / 8.6 / 4.4 %. Not shipped. Stop 35 (the defaults, over the
 # library with the stand and its stop-34 controller) shipped: README "Stop 35".
 # Usage: bash scripts/train-sit-handovers.sh [LIBRARY] — env: RUN (runs/sit-handovers), TRIALS
-# (1000, the skill evaluations), EXTRA (more arguments for every finetune).
+# (1000, the skill evaluations), EXTRA (more arguments for every finetune), META_ITERS, META_MORE,
+# META_TRIALS, SIT_HANDOVER_ITERS, SIT_HANDOVER_FROM, CRITIC_WARMUP, DELIVER_TRIALS, PLANNER (above).
+# Only the controller's further rounds, over the library as it is:
+#   DELIVER_TRIALS=2 SIT_HANDOVER_ITERS=0 META_ITERS=0 bash scripts/train-sit-handovers.sh
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 lib="${1:-skills/library}"
@@ -32,6 +40,7 @@ deliver_trials="${DELIVER_TRIALS:-200}"
 from="${SIT_HANDOVER_FROM:-stand}"
 sit_iters="${SIT_HANDOVER_ITERS:-2000}"
 meta_iters="${META_ITERS:-2400}"
+meta_more="${META_MORE-2:1600 2:1600}"
 mkdir -p "$run"
 planner=()
 if [ "${PLANNER:-0}" != 0 ]; then planner=(--planner); fi
@@ -56,4 +65,11 @@ if [ "$meta_iters" != 0 ]; then
     --run-dir "$run/meta-train"
   "$bin" meta eval scenes/sit.ron --library "$lib" --trials "${META_TRIALS:-1000}"
 fi
+round=0
+for more in $meta_more; do
+  round=$((round + 1))
+  "$bin" meta train scenes/sit.ron --library "$lib" --warm-start "$lib/meta" --no-curriculum \
+    --learning-rate 1.5e-4 --seed "${more%%:*}" --iterations "${more##*:}" --run-dir "$run/meta-more-$round"
+  "$bin" meta eval scenes/sit.ron --library "$lib" --trials "${META_TRIALS:-1000}"
+done
 echo "sit fitted to the controller's handovers in $lib (evaluations appended to $evals)"

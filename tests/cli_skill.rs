@@ -174,6 +174,24 @@ fn meta_train_eval_and_the_main_job() {
     let out = repertoire(&[&args[..], &["--resume", dir.join("no-such/iter-000001").to_str().unwrap()]].concat());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("no-such/iter-000001.ron"), "{err}");
+    // A new run from the trained controller: its critic comes along, so no warm-up; the
+    // manifest names where it started. Not together with --resume.
+    let warm = dir.join("meta-warm");
+    let meta_s = meta.to_str().unwrap();
+    let args = ["meta", "train", "--library", lib_s, "--out", warm.to_str().unwrap(), "--iterations", "1"];
+    let rest = ["--warm-start", meta_s, "--no-curriculum", "--learning-rate", "1e-4", "--envs", "2"];
+    let warm_run = dir.join("run-warm");
+    let run_dir = ["--run-dir", warm_run.to_str().unwrap()];
+    ok(&repertoire(&[&args[..], &rest[..], &run_dir[..]].concat()));
+    let manifest = std::fs::read_to_string(warm.join("meta.ron")).unwrap();
+    assert!(manifest.contains(&format!("from: \"{meta_s}\"")) && manifest.contains("critic: true"), "{manifest}");
+    assert!(manifest.contains("critic_warmup: 0,") && manifest.contains("learning_rate: 0.0001,"), "{manifest}");
+    let out = repertoire(&[&args[..], &rest[..], &["--resume", stem.to_str().unwrap()]].concat());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("--warm-start") && err.contains("--resume"), "{err}");
+    let out = repertoire(&[&args[..], &["--warm-start", dir.join("no-such").to_str().unwrap()]].concat());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("no-such/meta.ron"), "{err}");
     let text = ok(&repertoire(&["meta", "eval", "--library", lib_s, "--trials", "2", "--zones", "front"]));
     assert!(text.contains("| front | 2 |") && text.contains("| all | 2 |"), "{text}");
     assert!(meta.join("eval/report.md").exists() && meta.join("eval/trials.csv").exists());
@@ -264,7 +282,7 @@ fn zero_iterations_are_refused_rather_than_run_as_one() {
 }
 
 #[test]
-fn a_negative_or_non_finite_entropy_bonus_is_refused() {
+fn a_negative_or_non_finite_entropy_bonus_or_learning_rate_is_refused() {
     let dir = common::temp_dir("cli-ent-coef");
     let lib = dir.join("library");
     for bad in ["-0.01", "NaN", "inf"] {
@@ -273,6 +291,12 @@ fn a_negative_or_non_finite_entropy_bonus_is_refused() {
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(!out.status.success(), "--ent-coef {bad} succeeded");
         assert!(err.contains("--ent-coef") && err.contains("0 or more"), "--ent-coef {bad}: {err}");
+    }
+    for bad in ["0", "-1e-4", "NaN"] {
+        let flag = format!("--learning-rate={bad}");
+        let out = repertoire(&["meta", "train", &flag, "--iterations", "1", "--library", lib.to_str().unwrap()]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && err.contains("--learning-rate") && err.contains("above 0"), "{bad}: {err}");
     }
     assert!(!lib.exists(), "nothing was written");
 }

@@ -146,6 +146,7 @@ pub fn distill(setup: Arc<MetaSetup>, opts: &DistillOptions) -> Result<(MetaMani
         advances: Vec::new(),
         command: opts.command.clone(),
         resumed: Vec::new(),
+        warm_start: None,
     };
     let (ppo, mut run) = match &opts.then_train {
         Some(train) => {

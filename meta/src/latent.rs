@@ -419,6 +419,12 @@ pub fn train(
     setup: Arc<LatentSetup>,
     opts: &crate::train::MetaTrainOptions,
 ) -> Result<(LatentMetaManifest, Vec<IterationMetrics>)> {
+    if let Some(dir) = &opts.warm_start {
+        return Err(MetaError::Invalid(format!(
+            "--warm-start {}: a warm start continues a controller over skills; the latent high level has none",
+            dir.display()
+        )));
+    }
     let envs = LatentMetaEnv::many(&setup, opts.ppo.num_envs)?;
     let low_level = vec![format!(
         "latent {} {:016x}, z held {} ticks",

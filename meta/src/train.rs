@@ -9,7 +9,7 @@ use std::time::Instant;
 
 use indicatif::{ProgressBar, ProgressStyle};
 use repertoire_curriculum::{Advance, ZoneCurriculum};
-use repertoire_learn::acting::ActingHybrid;
+use repertoire_learn::acting::{ActingCritic, ActingHybrid};
 use repertoire_learn::checkpoint;
 use repertoire_learn::env::{Env, EpisodeStats};
 use repertoire_learn::ppo::{IterationMetrics, Ppo, PpoConfig};
@@ -53,9 +53,36 @@ pub struct MetaManifest {
     /// Where the run was continued from its checkpoints (`meta train --resume`), oldest first.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub resumed: Vec<Resume>,
+    /// The trained controller this run started from (`meta train --warm-start`), if any.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub warm_start: Option<WarmStart>,
     /// Git commit.
     pub git_hash: Option<String>,
 }
+
+/// The trained controller a run started from (`meta train --warm-start DIR`): its option and
+/// continuous networks and observation statistics, and its critic when it saved one.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct WarmStart {
+    /// The controller's folder.
+    pub from: String,
+    /// Its iterations and decisions (this run's `iterations` and `samples` count its own only).
+    pub iterations: usize,
+    pub samples: u64,
+    /// Whether its critic came along (`meta.critic.safetensors`); without one the value network
+    /// starts fresh and the first `critic_warmup` iterations train it alone.
+    pub critic: bool,
+    /// Skills of the library retrained since that controller was trained (their weights differ
+    /// from those its manifest pins): the run goes on over the library's.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub retrained: Vec<String>,
+    /// The command that trained it.
+    pub command: String,
+}
+
+/// The critic a controller is saved with, beside `meta.safetensors`, so that a warm start
+/// (`meta train --warm-start`) goes on with a value network that knows the task.
+pub const CRITIC_FILE: &str = "meta.critic.safetensors";
 
 /// A training run continued from one of its checkpoints.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -85,6 +112,10 @@ pub struct MetaTrainOptions {
     pub resume: Option<PathBuf>,
     /// Write a checkpoint every this many iterations (0: only after the last).
     pub checkpoint_every: usize,
+    /// Start from this trained controller's networks (a folder with `meta.ron`) instead of
+    /// fresh ones: a new run (fresh optimiser, learning-rate schedule and curriculum) over the
+    /// same skills. Not with `resume`.
+    pub warm_start: Option<PathBuf>,
 }
 
 /// Iterations between a training run's checkpoints unless asked otherwise.
@@ -107,12 +138,70 @@ pub fn default_ppo() -> PpoConfig {
 
 /// Trains the meta-controller of `setup`; returns the manifest and each iteration's metrics.
 pub fn train(setup: Arc<MetaSetup>, opts: &MetaTrainOptions) -> Result<(MetaManifest, Vec<IterationMetrics>)> {
-    let envs = (0..opts.ppo.num_envs).map(|_| MetaEnv::new(Arc::clone(&setup))).collect();
-    let mut session = Session::open(&setup.model, &setup.zones, envs, opts, setup.low_level())?;
+    let envs: Vec<MetaEnv> = (0..opts.ppo.num_envs).map(|_| MetaEnv::new(Arc::clone(&setup))).collect();
+    let mut session = match &opts.warm_start {
+        Some(dir) => {
+            if opts.resume.is_some() {
+                return Err(MetaError::Invalid(
+                    "a run either continues its checkpoint (--resume) or starts from a controller (--warm-start)"
+                        .into(),
+                ));
+            }
+            let mut ppo = Ppo::new(opts.ppo.clone(), envs);
+            let from = warm_start(dir, &setup, &mut ppo)?;
+            let mut session = Session::fresh(ppo, &setup.model, &setup.zones, opts, setup.low_level())?;
+            session.state.warm_start = Some(from);
+            session
+        }
+        None => Session::open(&setup.model, &setup.zones, envs, opts, setup.low_level())?,
+    };
     let history = session.run(opts, "skills")?;
     let (ppo, run) = session.finish();
     let manifest = save_controller(&setup, &ppo, &opts.out, run)?;
     Ok((manifest, history))
+}
+
+/// Starts `ppo` from the controller in `dir` (refused, naming the file, when it was trained over
+/// other skills, body or observations than `setup`'s; skills retrained since are named in the
+/// record): its head and observation statistics, and its critic when it saved one. Returns what the new controller's manifest records of it.
+fn warm_start(dir: &Path, setup: &MetaSetup, ppo: &mut Ppo<MetaEnv>) -> Result<WarmStart> {
+    let (prior, head) = load_unpinned(dir, setup)?;
+    let retrained: Vec<String> = if prior.skill_weights.len() == setup.skills.len() {
+        let changed = setup.skills.iter().zip(&prior.skill_weights).filter(|(s, w)| s.policy_fnv1a != **w);
+        changed.map(|(s, _)| s.name.clone()).collect()
+    } else {
+        Vec::new()
+    };
+    if !retrained.is_empty() {
+        tracing::warn!(
+            controller = %dir.display(),
+            ?retrained,
+            "the controller was trained over other weights of these skills: it goes on over the library's"
+        );
+    }
+    let invalid = |path: &Path, e: String| MetaError::Invalid(format!("{}: {e}", path.display()));
+    head.load_into(ppo).map_err(|e| invalid(&dir.join("meta.safetensors"), e))?;
+    let critic_path = dir.join(CRITIC_FILE);
+    let critic = critic_path.exists();
+    if critic {
+        let c = ActingCritic::load(&critic_path).map_err(|e| MetaError::Invalid(e.to_string()))?;
+        c.load_into(ppo).map_err(|e| invalid(&critic_path, e))?;
+    } else if ppo.cfg.critic_warmup == 0 {
+        tracing::warn!(
+            controller = %dir.display(),
+            "the controller saved no critic: its value network starts fresh with no warm-up \
+             (--critic-warmup N trains it alone first)"
+        );
+    }
+    tracing::info!(from = %dir.display(), iterations = prior.iterations, critic, "warm start");
+    Ok(WarmStart {
+        from: dir.display().to_string(),
+        iterations: prior.iterations,
+        samples: prior.samples,
+        critic,
+        retrained,
+        command: prior.command,
+    })
 }
 
 /// What a controller's manifest records of the run that made it.
@@ -128,6 +217,8 @@ pub(crate) struct TrainedRun {
     pub command: String,
     /// The commands that continued it.
     pub resumed: Vec<Resume>,
+    /// The controller it started from.
+    pub warm_start: Option<WarmStart>,
 }
 
 /// Writes `ppo`'s hybrid head (`meta.safetensors`) and its manifest (`meta.ron`, pinning the
@@ -141,6 +232,7 @@ pub(crate) fn save_controller<E: Env>(
     std::fs::create_dir_all(out).map_err(|e| MetaError::Invalid(format!("{}: {e}", out.display())))?;
     let head = ActingHybrid::from_ppo(ppo).expect("the meta environment has hybrid actions");
     head.save(&out.join("meta.safetensors")).map_err(|e| MetaError::Invalid(e.to_string()))?;
+    ActingCritic::from_ppo(ppo).save(&out.join(CRITIC_FILE)).map_err(|e| MetaError::Invalid(e.to_string()))?;
     let manifest = MetaManifest {
         scenario: setup.model.scenario.path.display().to_string(),
         skills: setup.skills.iter().map(|s| s.name.clone()).collect(),
@@ -155,6 +247,7 @@ pub(crate) fn save_controller<E: Env>(
         advances: run.advances,
         command: run.command,
         resumed: run.resumed,
+        warm_start: run.warm_start,
         git_hash: git_hash(),
     };
     let text = ron::ser::to_string_pretty(&manifest, ron::ser::PrettyConfig::new().depth_limit(2))
@@ -178,6 +271,9 @@ struct RunState {
     command: String,
     /// The commands that continued it.
     resumed: Vec<Resume>,
+    /// The controller the run started from.
+    #[serde(default)]
+    warm_start: Option<WarmStart>,
 }
 
 /// `<stem>.run.ron`, beside the checkpoint's [`checkpoint::manifest_path`].
@@ -302,8 +398,14 @@ impl<'z, E: Env> Session<'z, E> {
         low_level: Vec<String>,
     ) -> Result<Self> {
         let schedule = Schedule::start(model, zones, opts)?;
-        let state =
-            RunState { low_level, curriculum: None, seconds: 0.0, command: opts.command.clone(), resumed: Vec::new() };
+        let state = RunState {
+            low_level,
+            curriculum: None,
+            seconds: 0.0,
+            command: opts.command.clone(),
+            resumed: Vec::new(),
+            warm_start: None,
+        };
         Ok(Session { ppo, schedule, state, started: Instant::now() })
     }
 
@@ -383,6 +485,7 @@ impl<'z, E: Env> Session<'z, E> {
             advances: self.schedule.into_history(),
             command: self.state.command,
             resumed: self.state.resumed,
+            warm_start: self.state.warm_start,
         };
         (self.ppo, run)
     }
@@ -489,6 +592,19 @@ impl<'a> Schedule<'a> {
 
 /// Loads a trained meta-controller and checks it fits `setup`.
 pub fn load(dir: &Path, setup: &MetaSetup) -> Result<(MetaManifest, ActingHybrid)> {
+    let (manifest, head) = load_unpinned(dir, setup)?;
+    check_skill_weights(
+        &dir.join("meta.ron"),
+        &manifest.skill_weights,
+        setup,
+        "retrain the controller, or point --library at the library it was trained over",
+    )?;
+    Ok((manifest, head))
+}
+
+/// [`load`] without checking the skills' weights: the skills, body and observations must
+/// match, but a skill may have been retrained since (a warm start goes on over it).
+fn load_unpinned(dir: &Path, setup: &MetaSetup) -> Result<(MetaManifest, ActingHybrid)> {
     let path = dir.join("meta.ron");
     let text = std::fs::read_to_string(&path).map_err(|e| MetaError::Invalid(format!("{}: {e}", path.display())))?;
     let manifest: MetaManifest = ron::from_str(&text)
@@ -509,12 +625,6 @@ pub fn load(dir: &Path, setup: &MetaSetup) -> Result<(MetaManifest, ActingHybrid
             setup.obs_dim()
         )));
     }
-    check_skill_weights(
-        &path,
-        &manifest.skill_weights,
-        setup,
-        "retrain the controller, or point --library at the library it was trained over",
-    )?;
     let head = ActingHybrid::load(&dir.join("meta.safetensors")).map_err(|e| MetaError::Invalid(e.to_string()))?;
     Ok((manifest, head))
 }

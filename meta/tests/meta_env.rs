@@ -9,7 +9,7 @@ use rand::SeedableRng;
 use repertoire_learn::env::{Env, EnvRng};
 use repertoire_learn::ppo::PpoConfig;
 use repertoire_meta::eval::evaluate;
-use repertoire_meta::train::{MetaTrainOptions, Resume, load, train};
+use repertoire_meta::train::{CRITIC_FILE, MetaTrainOptions, Resume, load, train};
 use repertoire_meta::{MetaEnv, MetaSetup, SkillGraph};
 use repertoire_scenes::{ScenarioFile, WorldModel};
 use repertoire_skill::train::TrainOptions;
@@ -204,6 +204,7 @@ fn training_writes_a_controller_and_evaluation_is_reproducible() {
         command: "test".into(),
         resume: None,
         checkpoint_every: 0,
+        warm_start: None,
     };
     let (manifest, history) = train(Arc::clone(&s), &opts).expect("train");
     assert_eq!(history.len(), 2);
@@ -337,6 +338,7 @@ fn the_planner_distilled_is_a_controller_that_loads_and_evaluates() {
             command: "test".into(),
             resume: None,
             checkpoint_every: 0,
+            warm_start: None,
         }),
     };
     let (manifest, f) = distill(Arc::clone(&s), &opts).expect("distil");
@@ -715,6 +717,7 @@ fn tiny_run(dir: &Path, name: &str, iterations: usize, resume: Option<PathBuf>) 
         command: name.into(),
         resume,
         checkpoint_every: 2,
+        warm_start: None,
     }
 }
 
@@ -804,6 +807,78 @@ fn a_run_resumed_from_its_checkpoint_ends_where_the_uninterrupted_run_ends() {
 }
 
 #[test]
+fn a_warm_start_begins_where_the_controller_ended_and_records_it() {
+    let s = setup(Some(SkillGraph::chain(&["walk_to", "turn_left", "sit"])));
+    let dir = std::env::temp_dir().join(format!("repertoire-meta-warm-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let (first, _) = train(Arc::clone(&s), &tiny_run(&dir, "first", 2, None)).expect("train");
+    let from = dir.join("first/meta");
+    assert!(from.join(CRITIC_FILE).exists(), "a controller is saved with its critic");
+    let warm = |name: &str, iterations: usize| MetaTrainOptions {
+        warm_start: Some(from.clone()),
+        curriculum: false,
+        ..tiny_run(&dir, name, iterations, None)
+    };
+    let bytes = |name: &str, file: &str| std::fs::read(dir.join(name).join("meta").join(file)).unwrap();
+    let files = ["meta.safetensors", "meta.logits.safetensors", CRITIC_FILE];
+
+    // No iterations from it: the option and continuous networks, the observation statistics
+    // and the critic exactly as they were; the manifest names where they came from.
+    let (copy, history) = train(Arc::clone(&s), &warm("copy", 0)).expect("warm start");
+    assert!(history.is_empty());
+    for file in files {
+        assert!(bytes("copy", file) == bytes("first", file), "{file} is the controller's, bit for bit");
+    }
+    assert_eq!((copy.iterations, copy.samples), (0, 0), "the new run counts its own");
+    let record = copy.warm_start.expect("the warm start is recorded");
+    assert_eq!(
+        (record.from.as_str(), record.iterations, record.samples, record.critic, record.command.as_str()),
+        (from.display().to_string().as_str(), 2, first.samples, true, "first")
+    );
+    assert!(record.retrained.is_empty(), "no skill retrained since");
+    assert!(first.warm_start.is_none());
+
+    // Trained on from there, it moves; a warm-started run resumed from its checkpoint keeps
+    // the record.
+    let (trained, _) = train(Arc::clone(&s), &warm("trained", 4)).expect("warm start and train");
+    assert!(bytes("trained", files[0]) != bytes("first", files[0]), "training moved the weights");
+    assert_eq!(trained.iterations, 4);
+    let before = bytes("trained", files[0]);
+    let resume = Some(dir.join("trained/run/checkpoints/iter-000002"));
+    let (resumed, _) =
+        train(Arc::clone(&s), &MetaTrainOptions { resume, curriculum: false, ..tiny_run(&dir, "trained", 4, None) })
+            .expect("resume");
+    assert_eq!(resumed.warm_start, trained.warm_start);
+    assert!(bytes("trained", files[0]) == before, "resumed, it ends where it ended");
+
+    // A controller that saved no critic: the head comes along, the value network starts fresh.
+    std::fs::remove_file(from.join(CRITIC_FILE)).unwrap();
+    let (fresh, _) = train(Arc::clone(&s), &warm("fresh-critic", 0)).expect("warm start without a critic");
+    assert!(!fresh.warm_start.expect("recorded").critic);
+    assert!(bytes("fresh-critic", files[0]) == bytes("first", files[0]));
+    assert!(bytes("fresh-critic", CRITIC_FILE) != bytes("copy", CRITIC_FILE), "a fresh critic");
+
+    // Over a library whose turn_left was retrained since (here: the pinned checksum changed)
+    // the warm start goes on, naming the skill, where loading the controller to act refuses.
+    let mut pinned = load(&from, &s).expect("loads").0;
+    pinned.skill_weights[1] ^= 1;
+    let text = ron::ser::to_string_pretty(&pinned, ron::ser::PrettyConfig::new()).unwrap();
+    std::fs::write(from.join("meta.ron"), text).unwrap();
+    assert!(load(&from, &s).is_err());
+    let (over, _) = train(Arc::clone(&s), &warm("retrained", 0)).expect("warm start over a retrained skill");
+    assert_eq!(over.warm_start.expect("recorded").retrained, ["turn_left"]);
+
+    // Refused: over other skills (naming the controller's manifest), and with --resume.
+    let other = setup(Some(SkillGraph::chain(&["walk_to", "turn_right", "sit"])));
+    let err = train(Arc::clone(&other), &warm("x", 2)).expect_err("other skills").to_string();
+    assert!(err.contains("first/meta/meta.ron") && err.contains("turn_right"), "{err}");
+    let both = MetaTrainOptions { resume: Some(dir.join("trained/run/checkpoints/iter-000002")), ..warm("x", 4) };
+    let err = train(Arc::clone(&s), &both).expect_err("both").to_string();
+    assert!(err.contains("--resume") && err.contains("--warm-start"), "{err}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
 fn the_oracle_sits_only_where_the_sit_succeeds_and_readiness_needs_a_ready_decision() {
     // `meta eval --oracle-sit`: the controller's sits timed by the planner's copy. A trial
     // that ends in the sit is one the copy saw succeed, so it succeeded; evaluation stays
@@ -822,6 +897,7 @@ fn the_oracle_sits_only_where_the_sit_succeeds_and_readiness_needs_a_ready_decis
         command: "test".into(),
         resume: None,
         checkpoint_every: 0,
+        warm_start: None,
     };
     train(Arc::clone(&s), &opts).expect("train");
     let (_, head) = load(&dir.join("meta"), &s).expect("load");

@@ -95,6 +95,19 @@ pub struct RunArgs {
     /// Open every zone from the start (the "no curriculum" ablation).
     #[arg(long)]
     no_curriculum: bool,
+    /// Start from a trained controller (a folder with meta.ron, e.g. skills/library/meta)
+    /// instead of fresh networks: a new run over the same skills, with a fresh optimiser,
+    /// learning-rate schedule and curriculum (add --no-curriculum to keep every zone open).
+    /// Its critic comes along when it saved one (meta.critic.safetensors).
+    #[arg(long, conflicts_with = "resume")]
+    warm_start: Option<PathBuf>,
+    /// Adam's learning rate (annealed to 0 over the run) [default: 3e-4].
+    #[arg(long, conflicts_with = "resume", value_parser = crate::cli::positive_f64)]
+    learning_rate: Option<f64>,
+    /// Train the value network alone for the first N iterations [default: 0; 100 when
+    /// --warm-start's controller saved no critic].
+    #[arg(long, conflicts_with = "resume")]
+    critic_warmup: Option<usize>,
 }
 
 #[derive(Debug, Subcommand)]
@@ -431,6 +444,9 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
                             resume: None,
                             checkpoint_every: CHECKPOINT_EVERY,
                             no_curriculum,
+                            warm_start: None,
+                            learning_rate: None,
+                            critic_warmup: None,
                         };
                         let run = TrainRun { args, command: command.clone() };
                         run.options(default_ppo(), out.clone(), "meta-distill")
@@ -838,6 +854,9 @@ pub fn default_latent_meta(library: &Path, model: &WorldModel) -> PathBuf {
     library.join(format!("latent-meta-{}", model.scenario.scenario.name))
 }
 
+/// Iterations the value network trains alone when `--warm-start`'s controller saved no critic.
+const WARM_START_CRITIC_WARMUP: usize = 100;
+
 /// A run `meta train` asks for ([`RunArgs`]) and the command line that asked.
 struct TrainRun {
     args: RunArgs,
@@ -867,6 +886,13 @@ impl TrainRun {
                     num_iterations: a.iterations.unwrap_or(base.num_iterations),
                     seed: a.seed.unwrap_or(base.seed),
                     ent_coef: a.ent_coef.unwrap_or(base.ent_coef),
+                    learning_rate: a.learning_rate.unwrap_or(base.learning_rate),
+                    critic_warmup: a.critic_warmup.unwrap_or_else(|| match &a.warm_start {
+                        Some(dir) if !dir.join(repertoire_meta::train::CRITIC_FILE).exists() => {
+                            WARM_START_CRITIC_WARMUP
+                        }
+                        _ => base.critic_warmup,
+                    }),
                     ..base
                 };
                 let secs =
@@ -883,6 +909,7 @@ impl TrainRun {
             command,
             resume: a.resume,
             checkpoint_every: a.checkpoint_every,
+            warm_start: a.warm_start,
         })
     }
 }

@@ -100,6 +100,15 @@ pub fn non_negative(s: &str) -> std::result::Result<f32, String> {
     }
 }
 
+/// A finite number above 0 (`--learning-rate`).
+pub fn positive_f64(s: &str) -> std::result::Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(x) if x.is_finite() && x > 0.0 => Ok(x),
+        Ok(_) => Err("must be a finite number above 0".to_string()),
+        Err(e) => Err(e.to_string()),
+    }
+}
+
 /// The command line as a manifest records it: `repertoire` and the arguments, each quoted for
 /// a POSIX shell where it needs it, so that it re-runs as written whatever the binary was called
 /// or where it lay (`target/release/repertoire`, a copy in `/tmp`).

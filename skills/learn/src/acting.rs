@@ -385,6 +385,44 @@ impl ActingHybrid {
         }
     }
 
+    /// Starts `ppo`'s hybrid head and observation statistics from this controller (a warm
+    /// start: the value network keeps its initialisation unless a critic is loaded as well).
+    /// `Err` names the first thing that differs: no hybrid head, the options, the continuous
+    /// width, a layer's shape or the observation width.
+    pub fn load_into<E: Env>(&self, ppo: &mut Ppo<E>) -> Result<(), String> {
+        if ppo.obs_rms.dim() != self.obs_rms.dim() {
+            return Err(format!(
+                "the controller observes {} values, the learner {}",
+                self.obs_rms.dim(),
+                ppo.obs_rms.dim()
+            ));
+        }
+        let Some(hybrid) = ppo.agent.hybrid.as_mut() else {
+            return Err("the learner's environment has no hybrid actions".into());
+        };
+        if hybrid.uses_continuous != self.head.uses_continuous {
+            return Err(format!(
+                "the controller's options read the continuous part as {:?}, the learner's as {:?}",
+                self.head.uses_continuous, hybrid.uses_continuous
+            ));
+        }
+        if hybrid.log_std.shape().0 != self.head.log_std.len() {
+            return Err(format!(
+                "the controller emits {} continuous values, the learner {}",
+                self.head.log_std.len(),
+                hybrid.log_std.shape().0
+            ));
+        }
+        copy_mlp(&mut hybrid.logits, &self.head.logits, "option")?;
+        copy_mlp(&mut hybrid.mean, &self.head.mean, "continuous")?;
+        hybrid.log_std.copy_from(&self.head.log_std);
+        ppo.obs_rms = self.obs_rms.clone();
+        if ppo.cfg.normalize_obs {
+            ppo.obs_rms.normalize(&ppo.envs.obs, &mut ppo.next_obs, OBS_CLIP);
+        }
+        Ok(())
+    }
+
     /// Writes the head to `path` (safetensors, via temporary siblings and renames).
     pub fn save(&self, path: &Path) -> Result<(), CheckpointError> {
         let as_policy = |mean: &MlpInference, log_std: Vec<f32>| ActingPolicy {
