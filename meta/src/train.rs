@@ -163,7 +163,8 @@ pub fn train(setup: Arc<MetaSetup>, opts: &MetaTrainOptions) -> Result<(MetaMani
 
 /// Starts `ppo` from the controller in `dir` (refused, naming the file, when it was trained over
 /// other skills, body or observations than `setup`'s; skills retrained since are named in the
-/// record): its head and observation statistics, and its critic when it saved one. Returns what the new controller's manifest records of it.
+/// record): its head and observation statistics, and its critic when it saved one. Returns what
+/// the new controller's manifest records of it.
 fn warm_start(dir: &Path, setup: &MetaSetup, ppo: &mut Ppo<MetaEnv>) -> Result<WarmStart> {
     let (prior, head) = load_unpinned(dir, setup)?;
     let retrained: Vec<String> = if prior.skill_weights.len() == setup.skills.len() {
