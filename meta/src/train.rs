@@ -78,6 +78,9 @@ pub struct WarmStart {
     pub retrained: Vec<String>,
     /// The command that trained it.
     pub command: String,
+    /// Where that controller itself started from, when it was warm-started too.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub before: Option<Box<WarmStart>>,
 }
 
 /// The critic a controller is saved with, beside `meta.safetensors`, so that a warm start
@@ -202,6 +205,7 @@ fn warm_start(dir: &Path, setup: &MetaSetup, ppo: &mut Ppo<MetaEnv>) -> Result<W
         critic,
         retrained,
         command: prior.command,
+        before: prior.warm_start.map(Box::new),
     })
 }
 
@@ -233,7 +237,14 @@ pub(crate) fn save_controller<E: Env>(
     std::fs::create_dir_all(out).map_err(|e| MetaError::Invalid(format!("{}: {e}", out.display())))?;
     let head = ActingHybrid::from_ppo(ppo).expect("the meta environment has hybrid actions");
     head.save(&out.join("meta.safetensors")).map_err(|e| MetaError::Invalid(e.to_string()))?;
-    ActingCritic::from_ppo(ppo).save(&out.join(CRITIC_FILE)).map_err(|e| MetaError::Invalid(e.to_string()))?;
+    // The critic goes along only where PPO trained it or a warm start brought one; a stale
+    // critic of an earlier controller in `out` is removed rather than paired with this head.
+    let critic = out.join(CRITIC_FILE);
+    if ppo.iteration > 0 || run.warm_start.as_ref().is_some_and(|w| w.critic) {
+        ActingCritic::from_ppo(ppo).save(&critic).map_err(|e| MetaError::Invalid(e.to_string()))?;
+    } else if critic.exists() {
+        std::fs::remove_file(&critic).map_err(|e| MetaError::Invalid(format!("{}: {e}", critic.display())))?;
+    }
     let manifest = MetaManifest {
         scenario: setup.model.scenario.path.display().to_string(),
         skills: setup.skills.iter().map(|s| s.name.clone()).collect(),

@@ -353,6 +353,8 @@ fn the_planner_distilled_is_a_controller_that_loads_and_evaluates() {
     assert_eq!((fitted.iterations, fitted.samples), (0, f.demonstrations as u64), "the fit alone");
     let weights = |dir: &Path| std::fs::read(dir.join("meta.safetensors")).unwrap();
     assert!(weights(&out) != weights(&out.join("fitted")), "PPO moved the fitted controller");
+    assert!(!out.join("fitted").join(CRITIC_FILE).exists(), "the fit trains no critic, so none is saved");
+    assert!(out.join(CRITIC_FILE).exists(), "PPO after the fit trained one");
     let report = evaluate(&s, &head, &["front".to_string()], 2, 2, 1).expect("evaluates");
     assert_eq!(report.trials.len(), 2);
     // Only successful episodes, when none succeeded, leave nothing to fit: a clear error.
@@ -850,13 +852,19 @@ fn a_warm_start_begins_where_the_controller_ended_and_records_it() {
             .expect("resume");
     assert_eq!(resumed.warm_start, trained.warm_start);
     assert!(bytes("trained", files[0]) == before, "resumed, it ends where it ended");
+    // From a warm-started controller: its own start is kept in the record.
+    let second = MetaTrainOptions { warm_start: Some(dir.join("trained/meta")), ..warm("second", 0) };
+    let (second, _) = train(Arc::clone(&s), &second).expect("a second warm start");
+    let record = second.warm_start.expect("recorded");
+    assert_eq!((record.iterations, record.command.as_str()), (4, "trained"));
+    assert_eq!(record.before.expect("its own start").from, from.display().to_string());
 
     // A controller that saved no critic: the head comes along, the value network starts fresh.
     std::fs::remove_file(from.join(CRITIC_FILE)).unwrap();
     let (fresh, _) = train(Arc::clone(&s), &warm("fresh-critic", 0)).expect("warm start without a critic");
     assert!(!fresh.warm_start.expect("recorded").critic);
     assert!(bytes("fresh-critic", files[0]) == bytes("first", files[0]));
-    assert!(bytes("fresh-critic", CRITIC_FILE) != bytes("copy", CRITIC_FILE), "a fresh critic");
+    assert!(!dir.join("fresh-critic/meta").join(CRITIC_FILE).exists(), "an untrained critic is not saved");
 
     // Over a library whose turn_left was retrained since (here: the pinned checksum changed)
     // the warm start goes on, naming the skill, where loading the controller to act refuses.
