@@ -100,7 +100,7 @@ pub fn non_negative(s: &str) -> std::result::Result<f32, String> {
     }
 }
 
-/// A finite number above 0 (`--learning-rate`).
+/// A finite number above 0 (`--learning-rate` of `skill train` and `meta train`).
 pub fn positive_f64(s: &str) -> std::result::Result<f64, String> {
     match s.parse::<f64>() {
         Ok(x) if x.is_finite() && x > 0.0 => Ok(x),

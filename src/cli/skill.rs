@@ -151,7 +151,7 @@ pub struct TrainArgs {
     #[arg(long)]
     critic_warmup: Option<usize>,
     /// Adam's learning rate, annealed to 0 over the iterations (default: the spec's).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::cli::positive_f64)]
     learning_rate: Option<f64>,
     /// Seed (default: the spec's).
     #[arg(long)]
@@ -211,9 +211,6 @@ fn train_cmd(
     }
     let mut spec = SpecFile::load(spec_path)?;
     if let Some(lr) = a.learning_rate {
-        if !(lr.is_finite() && lr > 0.0) {
-            bail!("--learning-rate must be a positive number, got {lr}");
-        }
         spec.spec.ppo.learning_rate = lr;
     }
     if let Some(n) = a.critic_warmup {
