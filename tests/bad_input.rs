@@ -77,6 +77,15 @@ fn inconsistent_values_are_explained() {
             "Scenario(name: \"x\", props: [Chair(name: \"c\")], skills: [\"walk\", \"sit\"], skill_graph: (start: [\"walk\"], edges: [(\"walk\", \"sit\")], guards: [(skill: \"sit\", near: \"c\", within_m: 0.8), (skill: \"sit\", near: \"c\", within_m: 0.5)]))",
             "has two guards",
         ),
+        (
+            "Scenario(name: \"x\", props: [Chair(name: \"c\")], detour: (around: [\"sofa\"], radius_m: 0.7))",
+            "the detour names prop `sofa`, which the scenario does not have (c)",
+        ),
+        (
+            "Scenario(name: \"x\", props: [Chair(name: \"c\")], detour: (around: [\"c\"], radius_m: -1.0))",
+            "needs `radius_m` > 0",
+        ),
+        ("Scenario(name: \"x\", props: [Chair(name: \"c\")], detour: (around: [], radius_m: 0.7))", "names no prop"),
     ] {
         let err = load(&dir, text).err().unwrap_or_else(|| panic!("accepted: {text}"));
         assert!(err.to_string().contains(expect), "{text}\n→ {err}");

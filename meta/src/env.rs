@@ -19,7 +19,7 @@
 //! end, where its policy was never trained: the decision ends early there, and choosing the
 //! same skill again plays its clip once more from the start.
 
-use std::f64::consts::TAU;
+use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, TAU};
 use std::path::Path;
 use std::sync::{Arc, RwLock};
 
@@ -199,6 +199,9 @@ pub struct MetaSetup {
     /// or PUTDOWN episode starts in that skill's end states, so it starts as if that skill had
     /// just played (the graph's successors of it are what may follow).
     pub hold_skill: Option<usize>,
+    /// The scenario's `detour`: the props a target-taking skill's target steers around and the
+    /// radius kept clear of their centres (see [`detour_target`]).
+    pub detour: Option<(Vec<usize>, f64)>,
 }
 
 impl MetaSetup {
@@ -302,6 +305,11 @@ impl MetaSetup {
         let rates = sc.rates;
         let ticks = (rates.control_hz / rates.meta_hz.max(1)).max(1) as usize;
         let zones = sc.spawn.iter().map(|z| z.name.clone()).collect();
+        let detour = sc.detour.as_ref().map(|d| {
+            let props =
+                d.around.iter().map(|n| model.prop_id(n).expect("detour props are validated with the scenario"));
+            (props.collect(), d.radius_m)
+        });
         Ok(MetaSetup {
             max_decisions: (time_limit_s * f64::from(rates.meta_hz)).round().max(1.0) as u32,
             time_limit_s,
@@ -314,6 +322,7 @@ impl MetaSetup {
             zones: Arc::new(RwLock::new(zones)),
             start_pool,
             hold_skill,
+            detour,
         })
     }
 
@@ -337,6 +346,50 @@ impl MetaSetup {
     pub fn control_hz(&self) -> f64 {
         f64::from(self.model.scenario.scenario.rates.control_hz)
     }
+}
+
+/// The target a walker at `from` is given for `target` when it must keep `radius` m from each
+/// of `centres` (the scenario's `detour`). The straight way to the target meets a circle when
+/// its closest point to the centre lies inside the circle and short of the target; the first
+/// circle met turns the target, at the same distance, onto that circle's tangent from `from`
+/// on the side the way passed the centre (from inside the circle: square to the centre and
+/// turned outwards the more the deeper in, so the walker skirts it and leaves the circle). A
+/// way that clears every circle, or ends before its closest point (a target in front of the
+/// prop, approached from that side), keeps its target.
+pub fn detour_target(
+    from: [f64; 2],
+    target: [f64; 2],
+    centres: impl Iterator<Item = [f64; 2]>,
+    radius: f64,
+) -> [f64; 2] {
+    let v = [target[0] - from[0], target[1] - from[1]];
+    let len2 = v[0] * v[0] + v[1] * v[1];
+    if len2 < 1e-12 {
+        return target;
+    }
+    // (along the way, centre offset) of the first circle met
+    let mut first: Option<(f64, [f64; 2])> = None;
+    for c in centres {
+        let w = [c[0] - from[0], c[1] - from[1]];
+        let s = (w[0] * v[0] + w[1] * v[1]) / len2;
+        if s <= 0.0 || s >= 1.0 {
+            continue;
+        }
+        let closest = (w[0] - s * v[0]).hypot(w[1] - s * v[1]);
+        if closest < radius && first.is_none_or(|(t, _)| s < t) {
+            first = Some((s, w));
+        }
+    }
+    let Some((_, w)) = first else { return target };
+    // Outside: the tangent. Inside: square to the centre and turned out by up to 45° more the
+    // deeper in, so the walker leaves the circle as it goes round.
+    let depth = w[0].hypot(w[1]) / radius;
+    let beta = if depth > 1.0 { (1.0 / depth).asin() } else { FRAC_PI_2 + (1.0 - depth) * FRAC_PI_4 };
+    // The centre left of the way (counter-clockwise of it): pass it on the right.
+    let left = v[0] * w[1] - v[1] * w[0] > 0.0;
+    let heading = w[1].atan2(w[0]) + if left { -beta } else { beta };
+    let distance = len2.sqrt();
+    [from[0] + distance * heading.cos(), from[1] + distance * heading.sin()]
 }
 
 /// One meta environment.
@@ -368,6 +421,10 @@ pub struct MetaEnv {
     pub zone: String,
     /// Skills chosen this episode, in order (transition matrices).
     pub chosen: Vec<usize>,
+    /// The skill that was playing when the character first touched the task's frame prop (the
+    /// chair) this episode; `None` while it has not. Diagnostics (`meta eval`'s `touched`):
+    /// a walk that ends in a fall after touching the chair bumped into it.
+    pub touched: Option<usize>,
     /// When set, each episode is recorded at the control rate (see [`MetaEnv::record_episodes`]).
     record: Option<(RecordOptions, Recorder)>,
 }
@@ -404,6 +461,7 @@ impl MetaEnv {
             start: (0.0, 0.0, 0.0),
             zone: String::new(),
             chosen: Vec::new(),
+            touched: None,
             record: None,
             setup,
         }
@@ -618,6 +676,7 @@ impl Env for MetaEnv {
         self.decisions = 0;
         self.switches = 0;
         self.chosen.clear();
+        self.touched = None;
         let hz = self.setup.control_hz();
         let moved = self.task.prepare(&self.setup.task, &mut self.world, rng, hz, self.start, &self.over);
         if moved {
@@ -688,6 +747,11 @@ impl Env for MetaEnv {
             let yaw = self.world.heading();
             let [dx, dy] = self.setup.skills[option].target_offset([action[1], action[2]]);
             self.target = [p[0] + yaw.cos() * dx - yaw.sin() * dy, p[1] + yaw.sin() * dx + yaw.cos() * dy];
+            if let Some((props, radius)) = &self.setup.detour {
+                let placements = self.world.placements();
+                let centres = props.iter().map(|&i| [placements[i].pos[0], placements[i].pos[1]]);
+                self.target = detour_target([p[0], p[1]], self.target, centres, *radius);
+            }
         }
         let mut fell = false;
         let mut failed = false;
@@ -698,6 +762,9 @@ impl Env for MetaEnv {
             self.tick(option);
             ran += 1;
             failed = self.task.tick(&self.setup.task, &self.world, control_dt);
+            if self.touched.is_none() && self.world.contacts().character_on_prop(self.setup.task.frame_prop()) {
+                self.touched = Some(option);
+            }
             self.record_frame();
             if self.world.has_fallen() || !self.world.root_height().is_finite() {
                 fell = true;
@@ -792,5 +859,74 @@ pub fn check_zones(model: &WorldModel, zones: &[String]) -> Result<()> {
     match zones.iter().find(|z| !model.scenario.scenario.spawn.iter().any(|s| &s.name == *z)) {
         Some(z) => Err(MetaError::Invalid(format!("no spawn zone `{z}` in {}", model.scenario.path.display()))),
         None => Ok(()),
+    }
+}
+
+#[cfg(test)]
+mod detour_tests {
+    use super::detour_target;
+
+    /// Closest distance from `c` to the segment `a`–`b`.
+    fn clearance(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> f64 {
+        let v = [b[0] - a[0], b[1] - a[1]];
+        let w = [c[0] - a[0], c[1] - a[1]];
+        let s = ((w[0] * v[0] + w[1] * v[1]) / (v[0] * v[0] + v[1] * v[1])).clamp(0.0, 1.0);
+        (w[0] - s * v[0]).hypot(w[1] - s * v[1])
+    }
+
+    fn dist(a: [f64; 2], b: [f64; 2]) -> f64 {
+        (a[0] - b[0]).hypot(a[1] - b[1])
+    }
+
+    #[test]
+    fn a_way_through_the_prop_turns_onto_the_tangent_at_the_same_distance() {
+        let (from, target, chair) = ([-2.0, 0.1], [2.0, 0.1], [0.0, 0.0]);
+        let t = detour_target(from, target, [chair].into_iter(), 0.7);
+        assert!((dist(from, t) - 4.0).abs() < 1e-9, "{t:?}");
+        // The tangent grazes the circle: the new way clears it by the radius, no more.
+        assert!((clearance(from, t, chair) - 0.7).abs() < 1e-9, "{t:?}");
+        // The chair lay right of the way (y 0.1 > 0): it passes on the left, round the far side.
+        assert!(t[1] > 0.1, "{t:?}");
+        let mirrored = detour_target([-2.0, -0.1], [2.0, -0.1], [chair].into_iter(), 0.7);
+        assert!(mirrored[1] < -0.1, "{mirrored:?}");
+    }
+
+    #[test]
+    fn ways_that_clear_the_prop_or_stop_short_of_it_keep_their_target() {
+        let chair = [0.0, 0.0];
+        // Passes 1 m away.
+        assert_eq!(detour_target([-2.0, 1.0], [2.0, 1.0], [chair].into_iter(), 0.7), [2.0, 1.0]);
+        // Stops short of the chair.
+        assert_eq!(detour_target([-3.0, 0.0], [-1.0, 0.0], [chair].into_iter(), 0.7), [-1.0, 0.0]);
+        // Walks away from it.
+        assert_eq!(detour_target([-1.0, 0.0], [-3.0, 0.0], [chair].into_iter(), 0.7), [-3.0, 0.0]);
+        // Approaches the spot 0.4 m in front of the seat from the front: the target lies before
+        // the way's closest point to the chair, inside the circle, and stands.
+        assert_eq!(detour_target([2.0, 0.2], [0.4, 0.0], [chair].into_iter(), 0.7), [0.4, 0.0]);
+        // No props, or a target at the walker's feet.
+        assert_eq!(detour_target([-2.0, 0.0], [2.0, 0.0], std::iter::empty(), 0.7), [2.0, 0.0]);
+        assert_eq!(detour_target([0.5, 0.5], [0.5, 0.5], [chair].into_iter(), 0.7), [0.5, 0.5]);
+    }
+
+    #[test]
+    fn from_inside_the_circle_the_walker_is_sent_round_and_out() {
+        let chair = [0.0, 0.0];
+        // Beside the chair, heading past its far side to the spot in front.
+        let from = [-0.3, 0.5];
+        let t = detour_target(from, [0.4, -0.1], [chair].into_iter(), 0.7);
+        let heading = [t[0] - from[0], t[1] - from[1]];
+        let outward = [from[0] - chair[0], from[1] - chair[1]];
+        // Square to the centre or outwards, never towards it.
+        assert!(heading[0] * outward[0] + heading[1] * outward[1] > 0.0, "{t:?}");
+        // And on round towards the front (x grows).
+        assert!(heading[0] > 0.0, "{t:?}");
+    }
+
+    #[test]
+    fn of_two_props_the_first_met_turns_the_way() {
+        let near = [1.0, 0.05];
+        let far = [3.0, -0.05];
+        let t = detour_target([0.0, 0.0], [5.0, 0.0], [far, near].into_iter(), 0.5);
+        assert!((clearance([0.0, 0.0], t, near) - 0.5).abs() < 1e-9, "{t:?}");
     }
 }

@@ -117,6 +117,9 @@ pub struct Trial {
     pub seconds: f64,
     /// Skills in the order chosen.
     pub skills: Vec<String>,
+    /// The skill playing when the character first touched the chair (`None`: it never did).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub touched: Option<String>,
 }
 
 /// Per-zone figures.
@@ -151,6 +154,9 @@ pub struct Ending {
     pub timeouts: usize,
     /// Mean minimum pelvis-to-seat distance of those trials (m).
     pub min_distance_mean: f64,
+    /// Of the falls, those after the character had touched the chair (a walk or turn that
+    /// bumped into it; in the sit, most falls).
+    pub falls_touched: usize,
 }
 
 /// The whole evaluation.
@@ -308,7 +314,9 @@ pub fn save_worst<'c>(
 fn trial_of(setup: &MetaSetup, env: &MetaEnv, index: usize, zone: &str, terms: &[f32], names: &[String]) -> Trial {
     let frame = env.world().placements()[setup.task.frame_prop()];
     let skills = env.chosen.iter().map(|&c| names[c].clone()).collect();
-    Trial::from_episode(index, zone, env.start, frame, terms, skills)
+    let mut trial = Trial::from_episode(index, zone, env.start, frame, terms, skills);
+    trial.touched = env.touched.map(|c| names[c].clone());
+    trial
 }
 
 impl Trial {
@@ -338,6 +346,7 @@ impl Trial {
             min_distance: f64::from(terms[1]),
             seconds: f64::from(terms[3]),
             skills,
+            touched: None,
         }
     }
 }
@@ -401,12 +410,14 @@ impl MetaReport {
                 }
                 let successes = ts.iter().filter(|t| t.success).count();
                 let falls = ts.iter().filter(|t| t.fell && !t.success).count();
+                let falls_touched = ts.iter().filter(|t| t.fell && !t.success && t.touched.is_some()).count();
                 Some(Ending {
                     trials: ts.len(),
                     successes,
                     falls,
                     timeouts: ts.len() - successes - falls,
                     min_distance_mean: ts.iter().map(|t| t.min_distance).sum::<f64>() / ts.len() as f64,
+                    falls_touched,
                     skill: skill.to_string(),
                 })
             })
@@ -434,13 +445,16 @@ impl MetaReport {
         let endings = self.endings();
         if !self.skills.is_empty() && !endings.is_empty() {
             let _ = writeln!(s, "\nhow trials ended, by the skill playing at the end (all zones)\n");
-            let _ = writeln!(s, "| last skill | trials | success | falls | time limit | min distance (m) |");
-            let _ = writeln!(s, "|---|---:|---:|---:|---:|---:|");
+            let _ = writeln!(
+                s,
+                "| last skill | trials | success | falls | of them after touching the chair | time limit | min distance (m) |"
+            );
+            let _ = writeln!(s, "|---|---:|---:|---:|---:|---:|---:|");
             for e in &endings {
                 let _ = writeln!(
                     s,
-                    "| {} | {} | {} | {} | {} | {:.2} |",
-                    e.skill, e.trials, e.successes, e.falls, e.timeouts, e.min_distance_mean
+                    "| {} | {} | {} | {} | {} | {} | {:.2} |",
+                    e.skill, e.trials, e.successes, e.falls, e.falls_touched, e.timeouts, e.min_distance_mean
                 );
             }
         }
@@ -461,11 +475,11 @@ impl MetaReport {
     pub fn write(&self, dir: &Path) -> Result<()> {
         let err = |e: std::io::Error| MetaError::Invalid(format!("{}: {e}", dir.display()));
         std::fs::create_dir_all(dir).map_err(err)?;
-        let mut csv = String::from("index,zone,x,y,yaw,side,success,fell,min_distance,seconds,skills\n");
+        let mut csv = String::from("index,zone,x,y,yaw,side,success,fell,min_distance,seconds,skills,touched\n");
         for t in &self.trials {
             let _ = writeln!(
                 csv,
-                "{},{},{:.4},{:.4},{:.4},{},{},{},{:.4},{:.2},{}",
+                "{},{},{:.4},{:.4},{:.4},{},{},{},{:.4},{:.2},{},{}",
                 t.index,
                 t.zone,
                 t.start.0,
@@ -476,7 +490,8 @@ impl MetaReport {
                 t.fell,
                 t.min_distance,
                 t.seconds,
-                t.skills.join(">")
+                t.skills.join(">"),
+                t.touched.as_deref().unwrap_or("")
             );
         }
         let json = serde_json_string(self);
@@ -530,6 +545,7 @@ mod tests {
             min_distance,
             seconds: 5.0,
             skills: skills.iter().map(|s| s.to_string()).collect(),
+            touched: None,
         }
     }
 
@@ -541,18 +557,26 @@ mod tests {
             trial(1, &["walk_to", "turn_left", "sit"], false, true, 0.5),
             trial(2, &["walk_to", "turn_left", "sit"], false, false, 0.3),
             trial(3, &["walk_to"], false, true, 1.5),
+            Trial {
+                touched: Some("walk_to".into()),
+                ..trial(4, &["walk_to", "turn_left", "walk_to"], false, true, 0.6)
+            },
+            Trial { touched: Some("sit".into()), ..trial(5, &["walk_to", "turn_left", "sit"], false, true, 0.3) },
         ];
         let r = report(&["front".to_string()], skills, trials);
         let e = r.endings();
         assert_eq!(e.len(), 2, "turn_left ended no trial: {e:?}");
         assert_eq!(
-            (e[0].skill.as_str(), e[0].trials, e[0].successes, e[0].falls, e[0].timeouts),
-            ("walk_to", 1, 0, 1, 0)
+            (e[0].skill.as_str(), e[0].trials, e[0].successes, e[0].falls, e[0].falls_touched, e[0].timeouts),
+            ("walk_to", 2, 0, 2, 1, 0)
         );
-        assert_eq!((e[1].skill.as_str(), e[1].trials, e[1].successes, e[1].falls, e[1].timeouts), ("sit", 3, 1, 1, 1));
+        assert_eq!(
+            (e[1].skill.as_str(), e[1].trials, e[1].successes, e[1].falls, e[1].falls_touched, e[1].timeouts),
+            ("sit", 4, 1, 2, 1, 1)
+        );
         assert!((e[1].min_distance_mean - 0.3).abs() < 1e-12);
         let md = r.markdown();
-        assert!(md.contains("| sit | 3 | 1 | 1 | 1 | 0.30 |"), "{md}");
-        assert!(md.contains("| walk_to | 1 | 0 | 1 | 0 | 1.50 |"), "{md}");
+        assert!(md.contains("| sit | 4 | 1 | 2 | 1 | 1 | 0.30 |"), "{md}");
+        assert!(md.contains("| walk_to | 2 | 0 | 2 | 1 | 0 | 1.05 |"), "{md}");
     }
 }

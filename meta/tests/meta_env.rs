@@ -946,3 +946,63 @@ fn the_oracle_sits_only_where_the_sit_succeeds_and_readiness_needs_a_ready_decis
         }
     }
 }
+
+#[test]
+fn the_first_touch_of_the_chair_is_kept_with_the_skill_playing() {
+    let s = setup(None);
+    let turn = s.graph.index("turn_left").expect("turn_left");
+    let chair = s.model.prop_id("chair").expect("chair");
+    let mut env = MetaEnv::new(Arc::clone(&s));
+    let mut obs = vec![0.0; env.obs_dim()];
+    env.reset(&mut EnvRng::seed_from_u64(5), &mut obs);
+    assert_eq!(env.touched, None, "spawned 1.5 m or more from the chair");
+    // Standing where the chair's seat is: the body meets it at the first tick.
+    let pl = env.world().placements()[chair];
+    env.world_mut().place_standing(pl.pos[0], pl.pos[1] + 0.15, pl.yaw);
+    let mut act = [0.0; 3];
+    act[0] = turn as f32;
+    env.step(&act, &mut obs);
+    assert_eq!(env.touched, Some(turn), "touched while the turn played");
+    act[0] = 0.0;
+    env.step(&act, &mut obs);
+    assert_eq!(env.touched, Some(turn), "the first touch is kept");
+    env.reset(&mut EnvRng::seed_from_u64(6), &mut obs);
+    assert_eq!(env.touched, None, "a new episode starts untouched");
+}
+
+#[test]
+fn with_a_detour_the_walks_target_goes_round_the_chair() {
+    use repertoire_meta::env::detour_target;
+    let builtin = sit_scenario();
+    let text = builtin
+        .text
+        .replace("    curriculum: (", "    detour: (around: [\"chair\"], radius_m: 0.7),\n    curriculum: (");
+    let file = ScenarioFile::parse(&builtin.path, text).expect("the scenario with a detour parses");
+    let model = Arc::new(WorldModel::build(file).expect("scene"));
+    let graph = SkillGraph::of(&model.scenario.scenario);
+    let s = Arc::new(MetaSetup::new(model, library(), graph).expect("meta setup"));
+    let chair = s.model.prop_id("chair").expect("chair");
+    assert_eq!(s.detour, Some((vec![chair], 0.7)));
+    let walk = s.graph.index("walk_to").expect("walk_to");
+    let mut env = MetaEnv::new(Arc::clone(&s));
+    let mut obs = vec![0.0; env.obs_dim()];
+    env.reset(&mut EnvRng::seed_from_u64(7), &mut obs);
+    let w = env.world().snapshot_len();
+    // 2 m behind the chair, facing it: the middle action's target, 2.75 m straight ahead, lies
+    // beyond the chair.
+    let pl = env.world().placements()[chair];
+    let (c, sn) = (pl.yaw.cos(), pl.yaw.sin());
+    env.world_mut().place_standing(pl.pos[0] - 2.0 * c, pl.pos[1] - 2.0 * sn, pl.yaw);
+    let p = env.world().pelvis_frame().pos;
+    let yaw = env.world().heading();
+    let [dx, dy] = s.skills[walk].target_offset([0.0, 0.0]);
+    let straight = [p[0] + yaw.cos() * dx - yaw.sin() * dy, p[1] + yaw.sin() * dx + yaw.cos() * dy];
+    let want = detour_target([p[0], p[1]], straight, [[pl.pos[0], pl.pos[1]]].into_iter(), 0.7);
+    assert!((want[0] - straight[0]).hypot(want[1] - straight[1]) > 0.5, "the straight way crosses the chair");
+    let mut act = [0.0; 3];
+    act[0] = walk as f32;
+    env.step(&act, &mut obs);
+    let snap = env.snapshot();
+    let got = [snap[w + 2], snap[w + 3]];
+    assert!((got[0] - want[0]).abs() < 1e-9 && (got[1] - want[1]).abs() < 1e-9, "target {got:?}, wanted {want:?}");
+}

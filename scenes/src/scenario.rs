@@ -73,6 +73,27 @@ pub struct Scenario {
     /// `"pedestal"`) stand for here; a name not bound means this scenario's prop of that name.
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub bind: BTreeMap<String, PropBinding>,
+    /// Steering around props: the target a target-taking skill (walk_to) is given at each
+    /// decision is turned aside when the straight way to it passes close to one of them.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub detour: Option<Detour>,
+}
+
+/// Steering around props (a navigation layer under the meta-controller). At every decision the
+/// 2-D target a target-taking skill (walk_to) is given is checked against a circle of
+/// `radius_m` around each prop of `around`: when the straight line from the pelvis to the
+/// target passes through one before the target is reached, the target is turned, at the same
+/// distance, onto the circle's tangent on the side the line passed, so the walker skirts the
+/// prop; re-checked every decision, the tangents trace a way round it. Inside a circle, or with
+/// the target short of it, the target stands. `Detour(around: ["chair"], radius_m: 0.7)` keeps
+/// a walker from cutting past the chair (a walk skill trained in an empty arena does not see it).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Detour {
+    /// Props to walk around (names of the scenario's props).
+    pub around: Vec<String>,
+    /// Radius of the circle kept clear around each prop's centre (m).
+    pub radius_m: f64,
 }
 
 /// What a prop named in a skill's observation resolves to in a scenario (see `Scenario::bind`).
@@ -1043,6 +1064,28 @@ impl ScenarioFile {
                         format!("the guard on `{}` needs `within_m` > 0 (it is {})", guard.skill, guard.within_m),
                     ));
                 }
+            }
+        }
+
+        if let Some(d) = &s.detour {
+            if d.around.is_empty() {
+                return Err(self.invalid(Some("detour"), "the detour names no prop to walk around"));
+            }
+            for name in &d.around {
+                if !s.props.iter().any(|p| p.name() == name.as_str()) {
+                    return Err(self.invalid(
+                        Some(name),
+                        format!(
+                            "the detour names prop `{name}`, which the scenario does not have ({})",
+                            s.props.iter().map(|p| p.name()).collect::<Vec<_>>().join(", ")
+                        ),
+                    ));
+                }
+            }
+            if !(d.radius_m.is_finite() && d.radius_m > 0.0) {
+                return Err(
+                    self.invalid(Some("radius_m"), format!("the detour needs `radius_m` > 0 (it is {})", d.radius_m))
+                );
             }
         }
 

@@ -1087,6 +1087,11 @@ impl Contacts {
         self.pelvis_on & (1 << p.min(63)) != 0
     }
 
+    /// True when any body of the character touches prop `p`.
+    pub fn character_on_prop(&self, p: usize) -> bool {
+        self.character_on & (1 << p.min(63)) != 0
+    }
+
     /// Which hands (left, right) touch prop `p`.
     pub fn hands_on_prop(&self, p: usize) -> [bool; 2] {
         let bit = 1 << p.min(63);

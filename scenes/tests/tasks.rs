@@ -333,3 +333,13 @@ fn a_fixed_scale_other_than_one_resizes_the_box_too() {
     let err = ObservationLayout::new(&model, &[Feature::PropSize("pedestal_a".into())]).unwrap_err().to_string();
     assert!(err.contains("prop_size:pedestal_a") && err.contains("is a pedestal"), "{err}");
 }
+
+#[test]
+fn the_detour_variant_differs_from_sit_only_in_its_detour() {
+    let sit = ScenarioFile::load(shipped("sit.ron")).unwrap().scenario;
+    let mut detour = ScenarioFile::load(shipped("sit_detour.ron")).unwrap().scenario;
+    let d = detour.detour.take().expect("a detour");
+    assert_eq!((d.around.as_slice(), d.radius_m), (&["chair".to_string()][..], 0.7));
+    detour.name = sit.name.clone();
+    assert_eq!(detour, sit, "the same scene, skills, graph and task");
+}
