@@ -84,9 +84,11 @@ pub struct Scenario {
 /// `radius_m` around each prop of `around`: when the straight line from the pelvis to the
 /// target passes through one before the target is reached, the target is turned, at the same
 /// distance, onto the circle's tangent on the side the line passed, so the walker skirts the
-/// prop; re-checked every decision, the tangents trace a way round it. Inside a circle, or with
-/// the target short of it, the target stands. `Detour(around: ["chair"], radius_m: 0.7)` keeps
-/// a walker from cutting past the chair (a walk skill trained in an empty arena does not see it).
+/// prop; re-checked every decision, the tangents trace a way round it (from inside a circle the
+/// target turns square to the centre and outwards). A target short of the way's closest point
+/// to the prop (in front of it, approached from that side) stands. `detour: (around: ["chair"],
+/// radius_m: 0.7)` is meant to keep a walker from cutting past the chair (a walk skill trained
+/// in an empty arena does not see it); with the library's walk_to it did not (stop 39).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Detour {
