@@ -222,7 +222,7 @@ impl Task for LatentTask {
         self.state.begin(&self.setup.task, world, rng, &self.over);
     }
 
-    fn step(&mut self, world: &World, _action: &[f32]) -> TaskStep {
+    fn step(&mut self, world: &mut World, _action: &[f32]) -> TaskStep {
         let dt = 1.0 / self.setup.control_hz();
         self.ticks += 1;
         let failed = self.state.tick(&self.setup.task, world, dt);

@@ -76,6 +76,10 @@ pub struct WarmStart {
     /// from those its manifest pins): the run goes on over the library's.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub retrained: Vec<String>,
+    /// Skills that took another's place in the graph (`meta train --replace OLD=NEW`): the
+    /// controller's option for OLD became this run's option for NEW.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub replaced: Vec<(String, String)>,
     /// The command that trained it.
     pub command: String,
     /// Where that controller itself started from, when it was warm-started too.
@@ -119,6 +123,10 @@ pub struct MetaTrainOptions {
     /// fresh ones: a new run (fresh optimiser, learning-rate schedule and curriculum) over the
     /// same skills. Not with `resume`.
     pub warm_start: Option<PathBuf>,
+    /// With `warm_start`: skills of that controller replaced in this scenario, `(old, new)`:
+    /// the option it learned for `old` (at the same place in the skill list) becomes `new`'s
+    /// (a chair-aware walk in walk_to's place). Every other skill must match as usual.
+    pub replace: Vec<(String, String)>,
 }
 
 /// Iterations between a training run's checkpoints unless asked otherwise.
@@ -151,7 +159,7 @@ pub fn train(setup: Arc<MetaSetup>, opts: &MetaTrainOptions) -> Result<(MetaMani
                 ));
             }
             let mut ppo = Ppo::new(opts.ppo.clone(), envs);
-            let from = warm_start(dir, &setup, &mut ppo)?;
+            let from = warm_start(dir, &opts.replace, &setup, &mut ppo)?;
             let mut session = Session::fresh(ppo, &setup.model, &setup.zones, opts, setup.low_level())?;
             session.state.warm_start = Some(from);
             session
@@ -168,10 +176,20 @@ pub fn train(setup: Arc<MetaSetup>, opts: &MetaTrainOptions) -> Result<(MetaMani
 /// other skills, body or observations than `setup`'s; skills retrained since are named in the
 /// record): its head and observation statistics, and its critic when it saved one. Returns what
 /// the new controller's manifest records of it.
-fn warm_start(dir: &Path, setup: &MetaSetup, ppo: &mut Ppo<MetaEnv>) -> Result<WarmStart> {
-    let (prior, head) = load_unpinned(dir, setup)?;
+fn warm_start(
+    dir: &Path,
+    replace: &[(String, String)],
+    setup: &MetaSetup,
+    ppo: &mut Ppo<MetaEnv>,
+) -> Result<WarmStart> {
+    let (prior, head) = load_replacing(dir, replace, setup)?;
+    let replaced_now = |name: &str| replace.iter().any(|(_, new)| new == name);
     let retrained: Vec<String> = if prior.skill_weights.len() == setup.skills.len() {
-        let changed = setup.skills.iter().zip(&prior.skill_weights).filter(|(s, w)| s.policy_fnv1a != **w);
+        let changed = setup
+            .skills
+            .iter()
+            .zip(&prior.skill_weights)
+            .filter(|(s, w)| s.policy_fnv1a != **w && !replaced_now(&s.name));
         changed.map(|(s, _)| s.name.clone()).collect()
     } else {
         Vec::new()
@@ -204,6 +222,7 @@ fn warm_start(dir: &Path, setup: &MetaSetup, ppo: &mut Ppo<MetaEnv>) -> Result<W
         samples: prior.samples,
         critic,
         retrained,
+        replaced: replace.to_vec(),
         command: prior.command,
         before: prior.warm_start.map(Box::new),
     })
@@ -617,12 +636,30 @@ pub fn load(dir: &Path, setup: &MetaSetup) -> Result<(MetaManifest, ActingHybrid
 /// [`load`] without checking the skills' weights: the skills, body and observations must
 /// match, but a skill may have been retrained since (a warm start goes on over it).
 fn load_unpinned(dir: &Path, setup: &MetaSetup) -> Result<(MetaManifest, ActingHybrid)> {
+    load_replacing(dir, &[], setup)
+}
+
+/// [`load_unpinned`], reading the controller's skill list with each `(old, new)` of `replace`
+/// as `new`; a pair naming no skill of the controller is refused (a typo would otherwise be
+/// reported as a skill-list mismatch far from its cause).
+fn load_replacing(dir: &Path, replace: &[(String, String)], setup: &MetaSetup) -> Result<(MetaManifest, ActingHybrid)> {
     let path = dir.join("meta.ron");
     let text = std::fs::read_to_string(&path).map_err(|e| MetaError::Invalid(format!("{}: {e}", path.display())))?;
     let manifest: MetaManifest = ron::from_str(&text)
         .map_err(|e| MetaError::Invalid(format!("{}:{}: {}", path.display(), e.span.start.line, e.code)))?;
     let names: Vec<String> = setup.skills.iter().map(|s| s.name.clone()).collect();
-    if manifest.skills != names
+    let mut trained = manifest.skills.clone();
+    for (old, new) in replace {
+        let Some(slot) = trained.iter_mut().find(|s| *s == old) else {
+            return Err(MetaError::Invalid(format!(
+                "{}: --replace {old}={new}: the controller has no skill `{old}` (its skills: {:?})",
+                path.display(),
+                manifest.skills
+            )));
+        };
+        *slot = new.clone();
+    }
+    if trained != names
         || manifest.body_hash != setup.model.body.content_hash()
         || manifest.obs_dim != setup.obs_dim()
     {

@@ -205,6 +205,7 @@ fn training_writes_a_controller_and_evaluation_is_reproducible() {
         resume: None,
         checkpoint_every: 0,
         warm_start: None,
+        replace: Vec::new(),
     };
     let (manifest, history) = train(Arc::clone(&s), &opts).expect("train");
     assert_eq!(history.len(), 2);
@@ -339,6 +340,7 @@ fn the_planner_distilled_is_a_controller_that_loads_and_evaluates() {
             resume: None,
             checkpoint_every: 0,
             warm_start: None,
+            replace: Vec::new(),
         }),
     };
     let (manifest, f) = distill(Arc::clone(&s), &opts).expect("distil");
@@ -720,6 +722,7 @@ fn tiny_run(dir: &Path, name: &str, iterations: usize, resume: Option<PathBuf>) 
         resume,
         checkpoint_every: 2,
         warm_start: None,
+        replace: Vec::new(),
     }
 }
 
@@ -880,6 +883,17 @@ fn a_warm_start_begins_where_the_controller_ended_and_records_it() {
     let other = setup(Some(SkillGraph::chain(&["walk_to", "turn_right", "sit"])));
     let err = train(Arc::clone(&other), &warm("x", 2)).expect_err("other skills").to_string();
     assert!(err.contains("first/meta/meta.ron") && err.contains("turn_right"), "{err}");
+    // Unless the other skill takes the old one's place (`--replace turn_left=turn_right`): the
+    // head comes along as it was, the record names the swap and does not call it retrained.
+    let swap = |old: &str| MetaTrainOptions { replace: vec![(old.into(), "turn_right".into())], ..warm("swap", 0) };
+    let (swapped, _) = train(Arc::clone(&other), &swap("turn_left")).expect("warm start over a replaced skill");
+    assert!(bytes("swap", files[0]) == bytes("first", files[0]));
+    let record = swapped.warm_start.expect("recorded");
+    assert_eq!(record.replaced, [("turn_left".to_string(), "turn_right".to_string())]);
+    assert!(record.retrained.is_empty(), "{:?}", record.retrained);
+    assert_eq!(swapped.skills, ["walk_to", "turn_right", "sit"]);
+    let err = train(Arc::clone(&other), &swap("turn_up")).expect_err("no such skill").to_string();
+    assert!(err.contains("meta.ron") && err.contains("turn_up=turn_right") && err.contains("no skill"), "{err}");
     let both = MetaTrainOptions { resume: Some(dir.join("trained/run/checkpoints/iter-000002")), ..warm("x", 4) };
     let err = train(Arc::clone(&s), &both).expect_err("both").to_string();
     assert!(err.contains("--resume") && err.contains("--warm-start"), "{err}");
@@ -906,6 +920,7 @@ fn the_oracle_sits_only_where_the_sit_succeeds_and_readiness_needs_a_ready_decis
         resume: None,
         checkpoint_every: 0,
         warm_start: None,
+        replace: Vec::new(),
     };
     train(Arc::clone(&s), &opts).expect("train");
     let (_, head) = load(&dir.join("meta"), &s).expect("load");

@@ -53,6 +53,7 @@ fn tiny_controller(setup: &Arc<MetaSetup>, tag: &str) -> (PathBuf, repertoire_le
         resume: None,
         checkpoint_every: 0,
         warm_start: None,
+        replace: Vec::new(),
     };
     let (manifest, _) = train(Arc::clone(setup), &opts).expect("train");
     assert_eq!(manifest.skills, ["walk", "turn_left", "turn_right"]);

@@ -20,6 +20,7 @@ pub const SEATED_FACING_DEG: f64 = 60.0;
 pub const KNOWN_SKILLS: &[&str] = &[
     "walk",
     "walk_to",
+    "walk_around",
     "turn_left",
     "turn_right",
     "turn_left_wide",

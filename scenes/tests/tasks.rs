@@ -343,3 +343,24 @@ fn the_detour_variant_differs_from_sit_only_in_its_detour() {
     detour.name = sit.name.clone();
     assert_eq!(detour, sit, "the same scene, skills, graph and task");
 }
+
+#[test]
+fn the_walk_around_variant_is_sit_with_walk_around_in_walk_tos_place() {
+    let sit = ScenarioFile::load(shipped("sit.ron")).unwrap().scenario;
+    let mut around = ScenarioFile::load(shipped("sit_around.ron")).unwrap().scenario;
+    assert!(around.skills.iter().any(|s| s == "walk_around") && !around.skills.iter().any(|s| s == "walk_to"));
+    let back = |s: &mut String| {
+        if s == "walk_around" {
+            *s = "walk_to".into();
+        }
+    };
+    around.skills.iter_mut().for_each(back);
+    let g = around.skill_graph.as_mut().expect("a graph");
+    g.start.iter_mut().for_each(back);
+    g.edges.iter_mut().for_each(|(a, b)| {
+        back(a);
+        back(b);
+    });
+    around.name = sit.name.clone();
+    assert_eq!(around, sit, "the same scene, task, zones and graph");
+}

@@ -101,6 +101,11 @@ pub struct RunArgs {
     /// Its critic comes along when it saved one (meta.critic.safetensors).
     #[arg(long, conflicts_with = "resume")]
     warm_start: Option<PathBuf>,
+    /// With --warm-start: OLD=NEW, the scenario has skill NEW where the controller had OLD
+    /// (same place in the skill list); the option it learned for OLD becomes NEW's (e.g.
+    /// walk_to=walk_around). Repeat for more.
+    #[arg(long, requires = "warm_start", value_parser = parse_replace)]
+    replace: Vec<(String, String)>,
     /// Adam's learning rate (annealed to 0 over the run) [default: 3e-4].
     #[arg(long, conflicts_with = "resume", value_parser = crate::cli::positive_f64)]
     learning_rate: Option<f64>,
@@ -445,6 +450,7 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
                             checkpoint_every: CHECKPOINT_EVERY,
                             no_curriculum,
                             warm_start: None,
+                            replace: Vec::new(),
                             learning_rate: None,
                             critic_warmup: None,
                         };
@@ -910,7 +916,16 @@ impl TrainRun {
             resume: a.resume,
             checkpoint_every: a.checkpoint_every,
             warm_start: a.warm_start,
+            replace: a.replace,
         })
+    }
+}
+
+/// `OLD=NEW` of `meta train --replace`.
+fn parse_replace(s: &str) -> std::result::Result<(String, String), String> {
+    match s.split_once('=') {
+        Some((old, new)) if !old.is_empty() && !new.is_empty() && !new.contains('=') => Ok((old.into(), new.into())),
+        _ => Err(format!("expected OLD=NEW (two skill names), got `{s}`")),
     }
 }
 

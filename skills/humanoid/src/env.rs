@@ -30,8 +30,9 @@ pub trait Task: Send {
     fn observe_extra(&self, _world: &World, _out: &mut [f32]) {}
     /// Puts `world` in the initial state of a new episode.
     fn reset(&mut self, world: &mut World, rng: &mut EnvRng);
-    /// Scores the control step just taken with normalised `action` (each in `[-1, 1]`).
-    fn step(&mut self, world: &World, action: &[f32]) -> TaskStep;
+    /// Scores the control step just taken with normalised `action` (each in `[-1, 1]`); it may
+    /// move props for what comes next (an obstacle put in the way of a new target).
+    fn step(&mut self, world: &mut World, action: &[f32]) -> TaskStep;
     /// The task's own state, for checkpoints (empty by default).
     fn snapshot(&self, _out: &mut Vec<f64>) {}
     /// Restores [`Task::snapshot`]'s output; `state` is exactly what it wrote.
@@ -213,7 +214,7 @@ impl<T: Task> Env for HumanoidEnv<T> {
         let stepped = self.world.step(&self.targets).is_ok();
         self.steps += 1;
         self.observe(obs);
-        let out = self.task.step(&self.world, action);
+        let out = self.task.step(&mut self.world, action);
         let diverged = !stepped || obs.iter().any(|v| !v.is_finite());
         if diverged {
             obs.fill(0.0);

@@ -74,7 +74,7 @@ impl Task for Locomotion {
         world.set_state(&self.qpos, &self.qvel).expect("a noisy standing pose is a valid state");
     }
 
-    fn step(&mut self, world: &World, action: &[f32]) -> TaskStep {
+    fn step(&mut self, world: &mut World, action: &[f32]) -> TaskStep {
         let fallen = world.has_fallen() || world.root_height() < self.min_height;
         let forward = world.root_velocity_heading()[0] as f32;
         let ctrl: f32 = action.iter().map(|a| a * a).sum();

@@ -184,7 +184,7 @@ impl Task for GoToTarget {
         self.min_distance = self.last_distance;
     }
 
-    fn step(&mut self, world: &World, _action: &[f32]) -> TaskStep {
+    fn step(&mut self, world: &mut World, _action: &[f32]) -> TaskStep {
         let d = self.distance(world);
         let speed = (d - self.last_distance) / world.model().control_dt();
         self.last_distance = d;

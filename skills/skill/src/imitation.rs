@@ -2,7 +2,7 @@
 //! reward), starting from reference states or from predecessor skills' end poses, ending on a
 //! fall or when the clip runs out.
 
-use std::f64::consts::TAU;
+use std::f64::consts::{PI, TAU};
 use std::sync::Arc;
 
 use rand::{Rng, SeedableRng};
@@ -15,7 +15,7 @@ use repertoire_scenes::world::spawn_point;
 use crate::pool::{Pool, PoolState};
 use crate::quat::{mul, rotate_z, yaw_quat};
 use crate::reference::{END_EFFECTORS, Reference, local_end_effectors, to_heading};
-use crate::spec::{Goal, Imitation, Init, Steering, Termination};
+use crate::spec::{Goal, Imitation, Init, Obstacle, Steering, Termination};
 use repertoire_scenes::ThrowSpec;
 
 /// Names of the reward terms and metrics each step reports (unweighted similarities in [0, 1],
@@ -66,6 +66,8 @@ pub struct TaskSettings {
     pub object: Option<ObjectSetup>,
     /// The hands' grip level (the spec's `grip`), set on the world at every episode start.
     pub grip: f64,
+    /// The prop put in the way of the walking targets (its index and the spec's settings).
+    pub obstacle: Option<(usize, Obstacle)>,
 }
 
 /// The imitation task of one environment.
@@ -544,8 +546,9 @@ impl ImitationTask {
         terms[5] = if on_seat { 1.0 } else { 0.0 };
         terms[6] = if object.1 { 1.0 } else { 0.0 };
         let t = &settings.termination;
-        // A dropped box or ball ends the episode like a fall.
-        let fell = (t.fall && contacts.fallen) || pelvis.pos[2] < t.min_height || object.2;
+        // A dropped box or ball ends the episode like a fall, and so does touching the obstacle.
+        let bumped = settings.obstacle.as_ref().is_some_and(|(p, o)| o.touch_ends && contacts.character_on_prop(*p));
+        let fell = (t.fall && contacts.fallen) || pelvis.pos[2] < t.min_height || object.2 || bumped;
         let reward = if fell {
             0.0
         } else {
@@ -564,6 +567,33 @@ fn draw_target(rng: &mut EnvRng, from: [f64; 2], heading: f64, distance_m: (f64,
     let d = rng.random_range(distance_m.0..=distance_m.1.max(distance_m.0));
     let a = heading + rng.random_range(-azimuth_deg..=azimuth_deg.max(-azimuth_deg)).to_radians();
     [from[0] + d * a.cos(), from[1] + d * a.sin()]
+}
+
+/// Puts the obstacle `(prop, settings)` in the way from the pelvis to `target` with probability
+/// `chance` (see [`Obstacle`]); failing that, on an episode's `first` target, 1.5–4 m off the
+/// pelvis in any direction. Never nearer the pelvis than the clearance; facing anywhere.
+fn place_obstacle(obstacle: &(usize, Obstacle), target: [f64; 2], world: &mut World, rng: &mut EnvRng, first: bool) {
+    let (prop, o) = obstacle;
+    let p = world.pelvis_frame().pos;
+    let (dx, dy) = (target[0] - p[0], target[1] - p[1]);
+    let d = (dx * dx + dy * dy).sqrt();
+    let yaw = rng.random_range(-PI..PI);
+    if rng.random_bool(o.chance) && d > 1e-6 {
+        let u = rng.random_range(o.along.0..=o.along.1);
+        let side = rng.random_range(-o.offset_m..=o.offset_m);
+        let (ex, ey) = (dx / d, dy / d);
+        let at = [p[0] + u * dx - side * ey, p[1] + u * dy + side * ex];
+        if (at[0] - p[0]).hypot(at[1] - p[1]) >= o.clearance_m {
+            world.move_prop(*prop, at[0], at[1], yaw).expect("the obstacle is a validated fixed prop");
+            return;
+        }
+    }
+    if first {
+        let lo = o.clearance_m.max(1.5);
+        let r = rng.random_range(lo..=lo.max(4.0));
+        let a = rng.random_range(-PI..PI);
+        world.move_prop(*prop, p[0] + r * a.cos(), p[1] + r * a.sin(), yaw).expect("the obstacle is a validated fixed prop");
+    }
 }
 
 /// `exp(−scale · e)`.
@@ -691,10 +721,13 @@ impl Task for ImitationTask {
                 self.target_rng = EnvRng::seed_from_u64(rng.random());
             }
         }
+        if let Some(o) = &settings.obstacle {
+            place_obstacle(o, self.target, world, rng, true);
+        }
         self.last_distance = self.goal_distance(world);
     }
 
-    fn step(&mut self, world: &World, _action: &[f32]) -> TaskStep {
+    fn step(&mut self, world: &mut World, _action: &[f32]) -> TaskStep {
         let settings = Arc::clone(&self.settings);
         let r = &settings.reference;
         // Advance the phase to the frame the character should now be at.
@@ -713,7 +746,15 @@ impl Task for ImitationTask {
             self.phase = (self.phase + 1).min(last);
             done_with_clip = self.phase == last && self.held >= r.hold_steps;
         }
+        let target = self.target;
         let mut out = self.score(world, self.phase);
+        if let Some(o) = &settings.obstacle
+            && self.target != target
+            && !out.terminated
+        {
+            // A new target (arrival or timeout): perhaps the obstacle moves into its way.
+            place_obstacle(o, self.target, world, &mut self.target_rng, false);
+        }
         out.truncated = done_with_clip && !out.terminated;
         out
     }

@@ -136,6 +136,21 @@ impl SkillSetup {
             _ => None,
         };
         let object = object_setup(&spec, &model, &reference)?;
+        let obstacle = match &s.obstacle {
+            Some(o) => {
+                let id = model.prop_id(&o.prop).filter(|&id| !model.scenario.scenario.props[id].is_free());
+                let id = id.ok_or_else(|| {
+                    SkillError::Invalid(format!(
+                        "{}: obstacle `{}` is not a fixed prop of the scene {}",
+                        spec.path.display(),
+                        o.prop,
+                        model.scenario.path.display()
+                    ))
+                })?;
+                Some((id, o.clone()))
+            }
+            None => None,
+        };
         let mut pools = Vec::new();
         if let Init::Pools { from, .. } = &s.init {
             for name in from {
@@ -180,6 +195,7 @@ impl SkillSetup {
             seat,
             object,
             grip: s.grip,
+            obstacle,
         });
         Ok(SkillSetup { spec, model, body, layout, settings, clip, max_steps: max_steps.max(1) })
     }

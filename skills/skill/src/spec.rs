@@ -441,6 +441,63 @@ impl Default for Termination {
     }
 }
 
+/// A fixed prop (a chair) put in the way of a steering goal's targets: the walk learns to go
+/// round what it observes (the spec's features should include the prop's `PropPose`), for
+/// scenarios where its target lies beside furniture. At every new target, with probability `chance`, the prop is moved onto the straight way
+/// from the pelvis to the target, `along` that way (fractions of the distance) and up to
+/// `offset_m` to either side, facing anywhere, unless that spot is nearer the pelvis than
+/// `clearance_m`; otherwise it stays where it stands (an episode's first target instead puts
+/// it 1.5–4 m off in any direction, never nearer than `clearance_m`). Touching the prop ends
+/// the episode unless `touch_ends` is false.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Obstacle {
+    /// The fixed prop's name in the skill's scene.
+    pub prop: String,
+    /// Share of targets the prop is put in the way of, in [0, 1].
+    pub chance: f64,
+    /// Where on the way to the target (fractions of the pelvis-to-target distance, in (0, 2]:
+    /// above 1 the prop stands beyond the target, as a chair does beyond the spot in front of it
+    /// that a sitting controller walks to).
+    pub along: (f64, f64),
+    /// Largest sideways offset from the straight way (m).
+    pub offset_m: f64,
+    /// The prop's centre is never put nearer the pelvis than this (m).
+    pub clearance_m: f64,
+    /// Whether touching the prop ends the episode like a fall (the default); `false` lets the
+    /// walk bump it and learn to stay up (only a real fall ends the episode then).
+    #[serde(default = "yes", skip_serializing_if = "is_true")]
+    pub touch_ends: bool,
+}
+
+fn yes() -> bool {
+    true
+}
+
+fn is_true(b: &bool) -> bool {
+    *b
+}
+
+impl Obstacle {
+    /// Why these settings cannot place the prop, if they cannot.
+    pub fn check(&self) -> std::result::Result<(), String> {
+        let (lo, hi) = self.along;
+        if !(0.0..=1.0).contains(&self.chance) {
+            return Err(format!("obstacle chance must be in [0, 1], got {}", self.chance));
+        }
+        if !(lo.is_finite() && hi.is_finite() && 0.0 < lo && lo <= hi && hi <= 2.0) {
+            return Err(format!("obstacle along ({lo}, {hi}) must satisfy 0 < low ≤ high ≤ 2"));
+        }
+        if !(self.offset_m.is_finite() && self.offset_m >= 0.0) {
+            return Err(format!("obstacle offset_m must be finite and ≥ 0, got {}", self.offset_m));
+        }
+        if !(self.clearance_m.is_finite() && self.clearance_m > 0.0 && self.clearance_m < 4.0) {
+            return Err(format!("obstacle clearance_m must be in (0, 4) m, got {}", self.clearance_m));
+        }
+        Ok(())
+    }
+}
+
 /// A skill spec, as written in `skills/skill/specs/*.ron`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -478,6 +535,9 @@ pub struct SkillSpec {
     /// each skill's own while it plays. 0 (the default) lets go.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub grip: f64,
+    /// A prop put in the way of a steering goal's targets ([`Obstacle`]); none by default.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub obstacle: Option<Obstacle>,
 }
 
 fn is_false(b: &bool) -> bool {
@@ -608,6 +668,14 @@ impl SpecFile {
         }
         if !(0.0..=1.0).contains(&spec.grip) {
             return bad(format!("grip must be between 0 and 1, got {}", spec.grip));
+        }
+        if let Some(o) = &spec.obstacle {
+            if spec.goal.steering().is_none() {
+                return bad(format!("obstacle `{}` needs a goal with a walking target (Target, or Carry with one)", o.prop));
+            }
+            if let Err(m) = o.check() {
+                return bad(m);
+            }
         }
         Ok(SpecFile { spec, path: path.to_path_buf() })
     }

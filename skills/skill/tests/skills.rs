@@ -833,3 +833,79 @@ fn the_stand_pays_fully_for_standing_still_and_little_for_moving() {
     assert!(moving.terms[4] < 0.05, "moving at 1 m/s still pays {}", moving.terms[4]);
     assert!(moving.reward < still.reward - 0.3, "{} vs {}", moving.reward, still.reward);
 }
+
+#[test]
+fn walk_around_sees_the_chair_put_in_its_way_and_a_touch_ends_the_episode() {
+    let library = Path::new(env!("CARGO_MANIFEST_DIR")).join("../library");
+    let s = setup("walk_around.ron", &library);
+    let walk_to = setup("walk_to.ron", &library);
+    let chair = s.settings.obstacle.as_ref().expect("walk_around has an obstacle").0;
+    let mut env = s.env();
+    assert_eq!(env.obs_dim(), walk_to.env().obs_dim() + 5, "the chair's pose: dx, dy, dz, sin, cos of its yaw");
+    let mut obs = vec![0.0; env.obs_dim()];
+    let zero = vec![0.0; env.act_dim()];
+    let mut rng = EnvRng::seed_from_u64(11);
+    let (mut in_way, trials) = (0, 60);
+    for _ in 0..trials {
+        env.reset(&mut rng, &mut obs);
+        let p = env.world().pelvis_frame().pos;
+        let c = env.world().placements()[chair].pos;
+        let t = env.task().target();
+        let gap = (c[0] - p[0]).hypot(c[1] - p[1]);
+        assert!(gap >= 1.5 - 1e-9, "the chair is put {gap:.2} m from the pelvis, inside the 1.5 m clearance");
+        // On the way: 50–80 % of the distance to the target, within 0.3 m of the straight line.
+        let (dx, dy) = (t[0] - p[0], t[1] - p[1]);
+        let d = dx.hypot(dy);
+        let along = ((c[0] - p[0]) * dx + (c[1] - p[1]) * dy) / (d * d);
+        let side = ((c[1] - p[1]) * dx - (c[0] - p[0]) * dy).abs() / d;
+        if (0.5 - 1e-9..=0.8 + 1e-9).contains(&along) && side <= 0.3 + 1e-9 {
+            in_way += 1;
+        }
+        // One step from a start clear of the chair does not end the episode.
+        assert!(!env.step(&zero, &mut obs).terminated);
+    }
+    // Half by the spec, less the spots inside the clearance (a third of those drawn): about 33 %,
+    // and a few chairs put off the way land on it by chance.
+    assert!((10..=33).contains(&in_way), "{in_way} of {trials} starts with the chair in the way");
+    // The pelvis's view of the chair is in the observation, after walk_to's proprioception.
+    env.reset(&mut rng, &mut obs);
+    let at = s.layout.entries.iter().find(|e| e.name == "prop_pose:chair").expect("observed").offset;
+    let rel = env.world().prop_relative(chair);
+    assert!((0..5).all(|k| (obs[at + k] - rel[k] as f32).abs() < 1e-5), "{:?} vs {rel:?}", &obs[at..at + 5]);
+    // The chair moved onto the character: the next step touches it and the episode ends.
+    let p = env.world().pelvis_frame().pos;
+    env.world_mut().move_prop(chair, p[0] + 0.25, p[1], 0.0).unwrap();
+    let out = env.step(&zero, &mut obs);
+    assert!(out.terminated && out.reward == 0.0, "a touch of the chair ends the episode unpaid");
+    // With `touch_ends: false` the same bump goes on (only a fall would end it).
+    let mut spec = s.spec.clone();
+    spec.spec.obstacle.as_mut().unwrap().touch_ends = false;
+    let bumps = SkillSetup::new(spec, &library).unwrap();
+    let mut env = bumps.env();
+    env.reset(&mut rng, &mut obs);
+    let p = env.world().pelvis_frame().pos;
+    env.world_mut().move_prop(chair, p[0] + 0.25, p[1], 0.0).unwrap();
+    let out = env.step(&zero, &mut obs);
+    assert!(env.world().contacts().character_on_prop(chair), "the chair is touched");
+    assert!(!out.terminated && out.reward > 0.0, "a bump alone does not end the episode");
+
+    // Bad obstacles are refused with the file: on a goal without a target, out of range, or
+    // naming a prop the scene lacks.
+    let text = std::fs::read_to_string(specs().join("walk_around.ron")).unwrap();
+    let dir = temp("bad-obstacle");
+    let path = specs().join("w.ron");
+    for (from, to, says) in [
+        ("goal: Target(weight: 0.5, distance_m: (1.5, 4.0), azimuth_deg: 90.0, reach_m: 0.5, speed_scale: 2.5, facing_scale: 2.0, retarget_s: 4.0)", "goal: None", "walking target"),
+        ("along: (0.5, 0.8)", "along: (0.5, 2.5)", "along"),
+        ("chance: 0.5", "chance: 1.5", "chance"),
+        ("clearance_m: 1.5", "clearance_m: 0.0", "clearance_m"),
+    ] {
+        let bad = text.replace(from, to);
+        assert_ne!(bad, text, "{from}");
+        let err = SpecFile::parse(&path, &bad).expect_err(says).to_string();
+        assert!(err.contains("w.ron") && err.contains(says), "{err}");
+    }
+    let bad = text.replace("prop: \"chair\", chance", "prop: \"sofa\", chance");
+    let err = SkillSetup::new(SpecFile::parse(&path, &bad).unwrap(), &dir).err().expect("no sofa").to_string();
+    assert!(err.contains("w.ron") && err.contains("`sofa`") && err.contains("arena_chair.ron"), "{err}");
+}
