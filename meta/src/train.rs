@@ -659,9 +659,7 @@ fn load_replacing(dir: &Path, replace: &[(String, String)], setup: &MetaSetup) -
         };
         *slot = new.clone();
     }
-    if trained != names
-        || manifest.body_hash != setup.model.body.content_hash()
-        || manifest.obs_dim != setup.obs_dim()
+    if trained != names || manifest.body_hash != setup.model.body.content_hash() || manifest.obs_dim != setup.obs_dim()
     {
         return Err(MetaError::Invalid(format!(
             "{}: trained for skills {:?} on body {} with {} observations; this scenario has {:?}, body {}, {}",

@@ -592,7 +592,9 @@ fn place_obstacle(obstacle: &(usize, Obstacle), target: [f64; 2], world: &mut Wo
         let lo = o.clearance_m.max(1.5);
         let r = rng.random_range(lo..=lo.max(4.0));
         let a = rng.random_range(-PI..PI);
-        world.move_prop(*prop, p[0] + r * a.cos(), p[1] + r * a.sin(), yaw).expect("the obstacle is a validated fixed prop");
+        world
+            .move_prop(*prop, p[0] + r * a.cos(), p[1] + r * a.sin(), yaw)
+            .expect("the obstacle is a validated fixed prop");
     }
 }
 

@@ -671,7 +671,10 @@ impl SpecFile {
         }
         if let Some(o) = &spec.obstacle {
             if spec.goal.steering().is_none() {
-                return bad(format!("obstacle `{}` needs a goal with a walking target (Target, or Carry with one)", o.prop));
+                return bad(format!(
+                    "obstacle `{}` needs a goal with a walking target (Target, or Carry with one)",
+                    o.prop
+                ));
             }
             if let Err(m) = o.check() {
                 return bad(m);

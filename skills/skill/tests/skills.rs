@@ -895,7 +895,11 @@ fn walk_around_sees_the_chair_put_in_its_way_and_a_touch_ends_the_episode() {
     let dir = temp("bad-obstacle");
     let path = specs().join("w.ron");
     for (from, to, says) in [
-        ("goal: Target(weight: 0.5, distance_m: (1.5, 4.0), azimuth_deg: 90.0, reach_m: 0.5, speed_scale: 2.5, facing_scale: 2.0, retarget_s: 4.0)", "goal: None", "walking target"),
+        (
+            "goal: Target(weight: 0.5, distance_m: (1.5, 4.0), azimuth_deg: 90.0, reach_m: 0.5, speed_scale: 2.5, facing_scale: 2.0, retarget_s: 4.0)",
+            "goal: None",
+            "walking target",
+        ),
         ("along: (0.5, 0.8)", "along: (0.5, 2.5)", "along"),
         ("chance: 0.5", "chance: 1.5", "chance"),
         ("clearance_m: 1.5", "clearance_m: 0.0", "clearance_m"),
