@@ -247,8 +247,12 @@ impl MetaSetup {
         let mut skills = Vec::new();
         let mut start_pool = None;
         let mut observed: Vec<String> = Vec::new();
+        let mut first_start = None;
         for (k, name) in graph.names().into_iter().enumerate() {
             let pool_path = library::skill_dir(library, name).join("end_poses.ron");
+            if first_start.is_none() && graph.is_allowed(None, k) {
+                first_start = Some(name);
+            }
             if start_pool.is_none() && graph.is_allowed(None, k) && pool_path.exists() {
                 let pool = Pool::load(&pool_path)?;
                 if !pool.states.is_empty() && pool.body_hash == model.body.content_hash() {
@@ -286,6 +290,18 @@ impl MetaSetup {
                 policy: s.policy,
                 guard,
             });
+        }
+        // Episodes start in the first start skill's end poses; one without a pool silently
+        // hands the start to a later skill's (a new walk not yet evaluated: stop 40).
+        if let (Some(first), Some((k, _))) = (first_start, &start_pool)
+            && graph.names()[*k] != first
+        {
+            tracing::warn!(
+                skill = first,
+                instead = graph.names()[*k],
+                "the graph's first start skill has no usable end-pose pool (run `repertoire skill eval` on it \
+                 without --no-pool): episodes start in the end poses of the next start skill that has one"
+            );
         }
         let observed: Vec<&str> = observed.iter().map(String::as_str).collect();
         for key in crate::bind::unused_bindings(&sc.bind, &observed) {
