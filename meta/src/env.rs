@@ -247,12 +247,8 @@ impl MetaSetup {
         let mut skills = Vec::new();
         let mut start_pool = None;
         let mut observed: Vec<String> = Vec::new();
-        let mut first_start = None;
         for (k, name) in graph.names().into_iter().enumerate() {
             let pool_path = library::skill_dir(library, name).join("end_poses.ron");
-            if first_start.is_none() && graph.is_allowed(None, k) {
-                first_start = Some(name);
-            }
             if start_pool.is_none() && graph.is_allowed(None, k) && pool_path.exists() {
                 let pool = Pool::load(&pool_path)?;
                 if !pool.states.is_empty() && pool.body_hash == model.body.content_hash() {
@@ -293,12 +289,14 @@ impl MetaSetup {
         }
         // Episodes start in the first start skill's end poses; one without a pool silently
         // hands the start to a later skill's (a new walk not yet evaluated: stop 40).
+        let first_start = (0..graph.len()).find(|&k| graph.is_allowed(None, k));
         if let (Some(first), Some((k, _))) = (first_start, &start_pool)
-            && graph.names()[*k] != first
+            && first != *k
         {
+            let names = graph.names();
             tracing::warn!(
-                skill = first,
-                instead = graph.names()[*k],
+                skill = names[first],
+                instead = names[*k],
                 "the graph's first start skill has no usable end-pose pool (run `repertoire skill eval` on it \
                  without --no-pool): episodes start in the end poses of the next start skill that has one"
             );
