@@ -19,6 +19,13 @@
 #      --iterations ITERATIONS`: another run from that controller with every zone open, into
 #      LIBRARY/meta again, then `meta eval` as in 4 (stop 38, the shipped controller: 53.0 /
 #      33.0 / 16.5 → 56.7 / 37.7 / 19.3 → 58.4 / 40.7 / 21.1 % seated, front / sides / behind).
+# Stop 41 (the shipped sit; README "Stop 41") ran a second round from the stop-38 controller's
+# handovers with looser imitation, keeping that controller:
+#   DELIVER_TRIALS=600 MAX_STATES=2000 SIT_SPEC=sit_handover.ron REPIN=1 META_ITERS=0 META_MORE="" \
+#     RUN=runs/sit-handovers-41 bash scripts/train-sit-handovers.sh
+# (SIT_SPEC: the spec fine-tuned, sit_reach.ron by default; SIT_FRACTION: the share of episodes
+# from the pools, 0.8; MAX_STATES: the most states a delivery keeps, 1000; REPIN=1: keep the
+# controller, pinned to the new sit, instead of retraining it.)
 # Stop 29 ran it from the planner's handovers, before the stand (PLANNER=1 DELIVER_TRIALS=100
 # SIT_HANDOVER_FROM=turn_left,turn_right META_ITERS=0; 2000 iterations, 23.0 min sharing the 2-core
 # machine): 88.4 → 94.6 % from the clip start, 55.0 → 61.2 % from the 56° turns, but 23.9 → 14.6 %
@@ -28,7 +35,8 @@
 # library with the stand and its stop-34 controller) shipped: README "Stop 35".
 # Usage: bash scripts/train-sit-handovers.sh [LIBRARY] — env: RUN (runs/sit-handovers), TRIALS
 # (1000, the skill evaluations), EXTRA (more arguments for every finetune), META_ITERS, META_MORE,
-# META_TRIALS, SIT_HANDOVER_ITERS, SIT_HANDOVER_FROM, CRITIC_WARMUP, DELIVER_TRIALS, PLANNER (above).
+# META_TRIALS, SIT_HANDOVER_ITERS, SIT_HANDOVER_FROM, CRITIC_WARMUP, DELIVER_TRIALS, PLANNER,
+# SIT_SPEC, SIT_FRACTION, MAX_STATES, REPIN (above).
 # Only the controller's further rounds, over the library as it is:
 #   DELIVER_TRIALS=2 SIT_HANDOVER_ITERS=0 META_ITERS=0 bash scripts/train-sit-handovers.sh
 set -euo pipefail
@@ -47,19 +55,27 @@ if [ "${PLANNER:-0}" != 0 ]; then planner=(--planner); fi
 
 deliver() {
   "$bin" meta deliver scenes/sit.ron "${planner[@]}" --spec "$specs/sit_reach.ron" --library "$lib" \
-    --max-offset 0.8 --max-turn 90 "$@"
+    --max-offset 0.8 --max-turn 90 --max-states "${MAX_STATES:-1000}" "$@"
 }
 deliver --trials "$deliver_trials" --seed 7 --out "$run/delivered.ron" --handovers-out "$run/handovers.ron"
 deliver --trials $(((deliver_trials + 1) / 2)) --seed 11 --out "$run/delivered-held.ron" \
   --handovers-out "$run/handovers-held.ron"
 
 if [ "$sit_iters" != 0 ]; then
-  "$bin" skill finetune "$specs/sit_reach.ron" --from "$run/handovers.ron,$from" --fraction 0.8 \
+  "$bin" skill finetune "$specs/${SIT_SPEC:-sit_reach.ron}" --from "$run/handovers.ron,$from" --fraction "${SIT_FRACTION:-0.8}" \
     --iterations "$sit_iters" --critic-warmup "${CRITIC_WARMUP:-100}" --library "$lib" "${extra[@]}"
 fi
 eval_skill "$specs/sit.ron" --from "$from"
 eval_skill "$specs/sit.ron" --from "$run/handovers-held.ron" --no-pool
 
+if [ "${REPIN:-0}" != 0 ]; then
+  # The sit ends every episode, so the controller over it is kept: a warm start of one
+  # iteration at a vanishing learning rate pins it to the new sit's weights, its networks as
+  # they were (stop 41).
+  "$bin" meta train scenes/sit.ron --library "$lib" --warm-start "$lib/meta" --iterations 1 \
+    --learning-rate 1e-12 --run-dir "$run/meta-repin"
+  "$bin" meta eval scenes/sit.ron --library "$lib" --trials "${META_TRIALS:-1000}"
+fi
 if [ "$meta_iters" != 0 ]; then
   "$bin" meta train scenes/sit.ron --library "$lib" --iterations "$meta_iters" \
     --run-dir "$run/meta-train"

@@ -337,6 +337,14 @@ fn eval_cmd(
             setup.spec.spec.episode_s
         );
     }
+    for r in &rows {
+        let (Some(touches), Some(o)) = (r.touches, setup.spec.spec.obstacle.as_ref()) else { continue };
+        let start = if r.start == StartFrom::ClipStart { "the clip start" } else { "the predecessors' end poses" };
+        println!(
+            "{}: {touches} of the {} falls from {start} were touches of `{}` (they end the episode)",
+            r.skill, r.falls, o.prop
+        );
+    }
     if let Some((_, pool_size)) = pool {
         let step = ends.len().div_ceil(pool_size.max(1)).max(1);
         let kept: Vec<_> = ends.into_iter().step_by(step).collect();

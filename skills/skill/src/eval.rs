@@ -55,6 +55,10 @@ pub struct EvalReport {
     /// Walk stage 2 (`Goal::Target` with an arrival radius): targets reached per trial.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub targets_per_trial: Option<f64>,
+    /// A spec with an `obstacle` whose touch ends the episode: how many of the `falls` were
+    /// such touches (the character may still have been on its feet).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub touches: Option<usize>,
 }
 
 /// Runs `trials` episodes of `skill` in `setup`'s environment, `batch` at a time in parallel,
@@ -146,6 +150,7 @@ pub fn evaluate(
         normalized_return: 0.0,
         mean_return: 0.0,
         targets_per_trial: settings.goal.steering().filter(|st| st.reach_m > 0.0).map(|_| 0.0),
+        touches: settings.obstacle.as_ref().filter(|(_, o)| o.touch_ends).map(|_| 0),
     };
     let mut pool = Vec::new();
     // A cycle (walk) has no end pose: every trial ends at the same phase of it. Its pool takes
@@ -219,6 +224,9 @@ pub fn evaluate(
             report.mean_return += returns[i];
             if let Some(t) = report.targets_per_trial.as_mut() {
                 *t += f64::from(env.task().reached);
+            }
+            if let Some(t) = report.touches.as_mut() {
+                *t += usize::from(out.terminated && env.task().touched);
             }
             if success {
                 let state = captured[i].take().unwrap_or_else(|| {

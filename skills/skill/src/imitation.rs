@@ -102,6 +102,9 @@ pub struct ImitationTask {
     target_rng: EnvRng,
     /// Targets reached this episode.
     pub reached: u32,
+    /// Whether the episode ended on a touch of the spec's obstacle (`touch_ends`); `skill eval`
+    /// counts those apart from the falls they are scored as.
+    pub touched: bool,
     joints: Vec<f64>,
 }
 
@@ -126,6 +129,7 @@ impl ImitationTask {
             pedestal_offset: [0.0; 3],
             target_rng: EnvRng::seed_from_u64(0),
             reached: 0,
+            touched: false,
             joints: vec![0.0; dof],
         }
     }
@@ -549,6 +553,7 @@ impl ImitationTask {
         // A dropped box or ball ends the episode like a fall, and so does touching the obstacle.
         let bumped = settings.obstacle.as_ref().is_some_and(|(p, o)| o.touch_ends && contacts.character_on_prop(*p));
         let fell = (t.fall && contacts.fallen) || pelvis.pos[2] < t.min_height || object.2 || bumped;
+        self.touched = bumped;
         let reward = if fell {
             0.0
         } else {
@@ -716,6 +721,7 @@ impl Task for ImitationTask {
         self.start_frame = self.phase;
         self.start_heading = world.heading();
         self.reached = 0;
+        self.touched = false;
         if let Some(st) = settings.goal.steering() {
             self.target = draw_target(rng, [x, y], heading, st.distance_m, st.azimuth_deg);
             self.target_steps = 0;

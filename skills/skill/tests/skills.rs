@@ -877,6 +877,9 @@ fn walk_around_sees_the_chair_put_in_its_way_and_a_touch_ends_the_episode() {
     env.world_mut().move_prop(chair, p[0] + 0.25, p[1], 0.0).unwrap();
     let out = env.step(&zero, &mut obs);
     assert!(out.terminated && out.reward == 0.0, "a touch of the chair ends the episode unpaid");
+    assert!(env.task().touched, "the touch is told apart from a fall (skill eval counts it)");
+    env.reset(&mut rng, &mut obs);
+    assert!(!env.task().touched, "a new episode starts untouched");
     // With `touch_ends: false` the same bump goes on (only a fall would end it).
     let mut spec = s.spec.clone();
     spec.spec.obstacle.as_mut().unwrap().touch_ends = false;
@@ -888,6 +891,7 @@ fn walk_around_sees_the_chair_put_in_its_way_and_a_touch_ends_the_episode() {
     let out = env.step(&zero, &mut obs);
     assert!(env.world().contacts().character_on_prop(chair), "the chair is touched");
     assert!(!out.terminated && out.reward > 0.0, "a bump alone does not end the episode");
+    assert!(!env.task().touched, "only a touch that ends the episode is counted");
 
     // Bad obstacles are refused with the file: on a goal without a target, out of range, or
     // naming a prop the scene lacks.
