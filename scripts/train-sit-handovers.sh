@@ -21,10 +21,11 @@
 #      33.0 / 16.5 → 56.7 / 37.7 / 19.3 → 58.4 / 40.7 / 21.1 % seated, front / sides / behind).
 # Stop 41 (the shipped sit; README "Stop 41") ran a second round from the stop-38 controller's
 # handovers with looser imitation, keeping that controller:
-#   DELIVER_TRIALS=600 MAX_STATES=2000 SIT_SPEC=sit_handover.ron REPIN=1 META_ITERS=0 META_MORE="" \
+#   DELIVER_TRIALS=600 MAX_STATES=2000 SIT_SPEC=sit_handover.ron SIT_ROUNDS=2 REPIN=1 META_ITERS=0 META_MORE="" \
 #     RUN=runs/sit-handovers-41 bash scripts/train-sit-handovers.sh
 # (SIT_SPEC: the spec fine-tuned, sit_reach.ron by default; SIT_FRACTION: the share of episodes
-# from the pools, 0.8; MAX_STATES: the most states a delivery keeps, 1000; REPIN=1: keep the
+# from the pools, 0.8; SIT_ROUNDS: fine-tunes of SIT_HANDOVER_ITERS one after the other from the
+# same handovers, 1; MAX_STATES: the most states a delivery keeps, 1000; REPIN=1: keep the
 # controller, pinned to the new sit, instead of retraining it.)
 # Stop 29 ran it from the planner's handovers, before the stand (PLANNER=1 DELIVER_TRIALS=100
 # SIT_HANDOVER_FROM=turn_left,turn_right META_ITERS=0; 2000 iterations, 23.0 min sharing the 2-core
@@ -36,7 +37,7 @@
 # Usage: bash scripts/train-sit-handovers.sh [LIBRARY] — env: RUN (runs/sit-handovers), TRIALS
 # (1000, the skill evaluations), EXTRA (more arguments for every finetune), META_ITERS, META_MORE,
 # META_TRIALS, SIT_HANDOVER_ITERS, SIT_HANDOVER_FROM, CRITIC_WARMUP, DELIVER_TRIALS, PLANNER,
-# SIT_SPEC, SIT_FRACTION, MAX_STATES, REPIN (above).
+# SIT_SPEC, SIT_FRACTION, SIT_ROUNDS, MAX_STATES, REPIN (above).
 # Only the controller's further rounds, over the library as it is:
 #   DELIVER_TRIALS=2 SIT_HANDOVER_ITERS=0 META_ITERS=0 bash scripts/train-sit-handovers.sh
 set -euo pipefail
@@ -61,10 +62,11 @@ deliver --trials "$deliver_trials" --seed 7 --out "$run/delivered.ron" --handove
 deliver --trials $(((deliver_trials + 1) / 2)) --seed 11 --out "$run/delivered-held.ron" \
   --handovers-out "$run/handovers-held.ron"
 
-if [ "$sit_iters" != 0 ]; then
+for _ in $(seq "${SIT_ROUNDS:-1}"); do
+  if [ "$sit_iters" = 0 ]; then break; fi
   "$bin" skill finetune "$specs/${SIT_SPEC:-sit_reach.ron}" --from "$run/handovers.ron,$from" --fraction "${SIT_FRACTION:-0.8}" \
     --iterations "$sit_iters" --critic-warmup "${CRITIC_WARMUP:-100}" --library "$lib" "${extra[@]}"
-fi
+done
 eval_skill "$specs/sit.ron" --from "$from"
 eval_skill "$specs/sit.ron" --from "$run/handovers-held.ron" --no-pool
 

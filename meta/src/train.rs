@@ -60,6 +60,28 @@ pub struct MetaManifest {
     pub git_hash: Option<String>,
 }
 
+impl MetaManifest {
+    /// Iterations over the whole warm-start chain: this run's and those of every controller it
+    /// started from, as far as the chain was recorded.
+    pub fn total_iterations(&self) -> usize {
+        let mut total = self.iterations;
+        let mut link = self.warm_start.as_ref();
+        while let Some(w) = link {
+            total += w.iterations;
+            link = w.before.as_deref();
+        }
+        total
+    }
+
+    /// "N iterations", or "N iterations, M in its last run" for a warm-started controller.
+    pub fn iterations_label(&self) -> String {
+        match self.total_iterations() {
+            t if t == self.iterations => format!("{t} iterations"),
+            t => format!("{t} iterations, {} in its last run", self.iterations),
+        }
+    }
+}
+
 /// The trained controller a run started from (`meta train --warm-start DIR`): its option and
 /// continuous networks and observation statistics, and its critic when it saved one.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -858,6 +858,9 @@ fn a_warm_start_begins_where_the_controller_ended_and_records_it() {
     // From a warm-started controller: its own start is kept in the record.
     let second = MetaTrainOptions { warm_start: Some(dir.join("trained/meta")), ..warm("second", 0) };
     let (second, _) = train(Arc::clone(&s), &second).expect("a second warm start");
+    assert_eq!(second.total_iterations(), 4 + 2, "the whole chain's iterations");
+    assert_eq!(second.iterations_label(), "6 iterations, 0 in its last run");
+    assert_eq!(first.iterations_label(), "2 iterations");
     let record = second.warm_start.expect("recorded");
     assert_eq!((record.iterations, record.command.as_str()), (4, "trained"));
     assert_eq!(record.before.expect("its own start").from, from.display().to_string());

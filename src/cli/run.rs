@@ -63,14 +63,14 @@ pub fn run(args: RunArgs) -> Result<()> {
         let setup = super::meta::setup(args.file.as_ref(), &args.library, &[], &skills)?;
         let (manifest, head) = repertoire_meta::train::load(&meta, &setup)?;
         if !matches!(setup.task, TaskSpec::Sit { .. }) {
-            return run_task(&setup, &head, &meta, manifest.iterations, &args);
+            return run_task(&setup, &head, &meta, &manifest.iterations_label(), &args);
         }
         let zones: Vec<String> = setup.model.scenario.scenario.spawn.iter().map(|z| z.name.clone()).collect();
         println!(
-            "scenario {} — meta-controller {} ({} iterations) over skills {}; {} trials per zone",
+            "scenario {} — meta-controller {} ({}) over skills {}; {} trials per zone",
             setup.model.scenario.scenario.name,
             meta.display(),
-            manifest.iterations,
+            manifest.iterations_label(),
             manifest.skills.join(", "),
             args.trials
         );
@@ -214,11 +214,11 @@ fn run_task(
     setup: &Arc<MetaSetup>,
     head: &repertoire_learn::acting::ActingHybrid,
     meta: &std::path::Path,
-    iterations: usize,
+    iterations: &str,
     args: &RunArgs,
 ) -> Result<()> {
     println!(
-        "scenario {} — meta-controller {} ({iterations} iterations) over skills {}",
+        "scenario {} — meta-controller {} ({iterations}) over skills {}",
         setup.model.scenario.scenario.name,
         meta.display(),
         setup.skills.iter().map(|s| s.name.as_str()).collect::<Vec<_>>().join(", ")
