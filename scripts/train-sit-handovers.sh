@@ -19,8 +19,8 @@
 #      --iterations ITERATIONS`: another run from that controller with every zone open, into
 #      LIBRARY/meta again, then `meta eval` as in 4 (stop 38, the shipped controller: 53.0 /
 #      33.0 / 16.5 → 56.7 / 37.7 / 19.3 → 58.4 / 40.7 / 21.1 % seated, front / sides / behind).
-# Stop 41 (the shipped sit; README "Stop 41") ran a second round from the stop-38 controller's
-# handovers with looser imitation, keeping that controller:
+# Stop 41 (the shipped sit; README "Stop 41") fitted the sit twice more to the stop-38
+# controller's handovers, with looser imitation, and kept that controller:
 #   DELIVER_TRIALS=600 MAX_STATES=2000 SIT_SPEC=sit_handover.ron SIT_ROUNDS=2 REPIN=1 META_ITERS=0 META_MORE="" \
 #     RUN=runs/sit-handovers-41 bash scripts/train-sit-handovers.sh
 # (SIT_SPEC: the spec fine-tuned, sit_reach.ron by default; SIT_FRACTION: the share of episodes

@@ -328,22 +328,20 @@ fn eval_cmd(
             r.normalized_return
         );
     }
-    for r in rows.iter().filter(|r| r.targets_per_trial.is_some()) {
-        let start = if r.start == StartFrom::ClipStart { "the clip start" } else { "the predecessors' end poses" };
-        println!(
-            "{}: {:.2} targets reached per {:.0} s trial from {start}",
-            r.skill,
-            r.targets_per_trial.unwrap_or(0.0),
-            setup.spec.spec.episode_s
-        );
-    }
     for r in &rows {
-        let (Some(touches), Some(o)) = (r.touches, setup.spec.spec.obstacle.as_ref()) else { continue };
         let start = if r.start == StartFrom::ClipStart { "the clip start" } else { "the predecessors' end poses" };
-        println!(
-            "{}: {touches} of the {} falls from {start} were touches of `{}` (they end the episode)",
-            r.skill, r.falls, o.prop
-        );
+        if let Some(targets) = r.targets_per_trial {
+            println!(
+                "{}: {targets:.2} targets reached per {:.0} s trial from {start}",
+                r.skill, setup.spec.spec.episode_s
+            );
+        }
+        if let (Some(touches), Some(o)) = (r.touches, setup.spec.spec.obstacle.as_ref()) {
+            println!(
+                "{}: {touches} of the {} falls from {start} were touches of `{}` (they end the episode)",
+                r.skill, r.falls, o.prop
+            );
+        }
     }
     if let Some((_, pool_size)) = pool {
         let step = ends.len().div_ceil(pool_size.max(1)).max(1);
