@@ -282,6 +282,32 @@ fn zero_iterations_are_refused_rather_than_run_as_one() {
 }
 
 #[test]
+fn zero_iterations_from_a_warm_start_copy_the_controller_pinned_to_the_library() {
+    // The re-pin after a skill was retrained: the networks bit for bit, the manifest pinned to
+    // the library's skills and naming the controller it came from.
+    let dir = common::temp_dir("cli-repin");
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let from = root.join("skills/library/meta");
+    let (library, out, run) = (root.join("skills/library"), dir.join("meta"), dir.join("run"));
+    let path = |p: &Path| p.to_str().unwrap().to_string();
+    let args = ["meta", "train", "--iterations", "0", "--warm-start", &path(&from), "--library", &path(&library)];
+    let stdout = common::ok(&repertoire(&[&args[..], &["--out", &path(&out), "--run-dir", &path(&run)]].concat()));
+    assert!(stdout.contains("copied as it is") && stdout.contains("retrained since: none"), "{stdout}");
+    for file in ["meta.safetensors", "meta.logits.safetensors", "meta.critic.safetensors"] {
+        let (a, b) = (std::fs::read(from.join(file)).unwrap(), std::fs::read(out.join(file)).unwrap());
+        assert!(a == b, "{file} is the controller's, bit for bit");
+    }
+    let weights = |text: &str| text.split("skill_weights: [").nth(1).unwrap().split(']').next().unwrap().to_string();
+    let (shipped, copy) = (
+        std::fs::read_to_string(from.join("meta.ron")).unwrap(),
+        std::fs::read_to_string(out.join("meta.ron")).unwrap(),
+    );
+    assert_eq!(weights(&copy), weights(&shipped), "pinned to the library's skills");
+    assert!(copy.contains("iterations: 0,") && copy.contains(&format!("from: \"{}\"", from.display())), "{copy}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
 fn a_negative_or_non_finite_entropy_bonus_or_learning_rate_is_refused() {
     let dir = common::temp_dir("cli-ent-coef");
     let lib = dir.join("library");

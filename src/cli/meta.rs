@@ -70,8 +70,10 @@ pub struct RunArgs {
     #[arg(long)]
     run_dir: Option<PathBuf>,
     /// PPO iterations in all [default: 200; resuming: the checkpoint's total]. Resuming with
-    /// more extends the run: learning-rate annealing then runs to the new total.
-    #[arg(long, value_parser = crate::cli::at_least_one)]
+    /// more extends the run: learning-rate annealing then runs to the new total. 0 only with
+    /// --warm-start: the controller copied as it is, pinned to the library's skills (a re-pin
+    /// after a skill was retrained).
+    #[arg(long)]
     iterations: Option<usize>,
     /// Parallel environments [default: 16; resuming: the checkpoint's].
     #[arg(long)]
@@ -382,6 +384,12 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
     let command = super::invocation();
     match cmd {
         MetaCommand::Train { file, library, out, run, chain, skills, latent, hold } => {
+            if run.iterations == Some(0) && run.warm_start.is_none() {
+                bail!(
+                    "--iterations: must be at least 1 (0 only with --warm-start, which copies that \
+                     controller pinned to the library's skills)"
+                );
+            }
             let run = TrainRun { args: run, command };
             if let Some((model, dir)) = latent_low_level(file.as_ref(), latent)? {
                 no_skill_options(&chain, &skills)?;
@@ -392,14 +400,24 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
             let opts = run.options(default_ppo(), out.clone(), "meta")?;
             let run_dir = opts.run_dir.clone();
             let (manifest, history) = train(setup, &opts).context("training the meta-controller")?;
-            print_training(
-                "decisions",
-                manifest.iterations,
-                manifest.samples,
-                manifest.seconds,
-                &history,
-                &manifest.advances,
-            );
+            if let (0, Some(w)) = (manifest.iterations, &manifest.warm_start) {
+                let retrained = if w.retrained.is_empty() { "none".to_string() } else { w.retrained.join(", ") };
+                println!(
+                    "the controller of {} copied as it is ({}), pinned to the library's skills \
+                     (retrained since: {retrained})",
+                    w.from,
+                    manifest.iterations_label()
+                );
+            } else {
+                print_training(
+                    "decisions",
+                    manifest.iterations,
+                    manifest.samples,
+                    manifest.seconds,
+                    &history,
+                    &manifest.advances,
+                );
+            }
             println!("meta-controller written to {}; run in {}", out.display(), run_dir.display());
             Ok(())
         }
