@@ -11,7 +11,7 @@
 #      (SIT_HANDOVER_FROM: the other pools, stand) for SIT_HANDOVER_ITERS (2000; 0 skips it),
 #      the critic warmed up for CRITIC_WARMUP iterations first (100);
 #   3. the sit evaluated from SIT_HANDOVER_FROM's end poses (writing its pool) and from the
-#      held-out handovers (each table has the clip-start row too);
+#      held-out handovers (each table has the clip-start row too; skipped when 2 is);
 #   4. `meta train scenes/sit.ron --iterations META_ITERS` (2400; 0 skips both)
 #      into LIBRARY/meta, then `meta eval --trials META_TRIALS` (1000 per zone).
 #   5. for each SEED:ITERATIONS of META_MORE ("2:1600 2:1600"; "" skips them), `meta train
@@ -71,8 +71,12 @@ for _ in $(seq "${SIT_ROUNDS:-1}"); do
   "$bin" skill finetune "$specs/${SIT_SPEC:-sit_reach.ron}" --from "$run/handovers.ron,$from" --fraction "${SIT_FRACTION:-0.8}" \
     --iterations "$sit_iters" --critic-warmup "${CRITIC_WARMUP:-100}" --library "$lib" "${extra[@]}"
 done
-eval_skill "$specs/sit.ron" --from "$from"
-eval_skill "$specs/sit.ron" --from "$run/handovers-held.ron" --no-pool
+if [ "$sit_iters" != 0 ]; then
+  # Only a retrained sit is evaluated (and its pool rewritten); the controller's rounds alone
+  # leave the library's sit as it is.
+  eval_skill "$specs/sit.ron" --from "$from"
+  eval_skill "$specs/sit.ron" --from "$run/handovers-held.ron" --no-pool
+fi
 
 if [ "${REPIN:-0}" != 0 ]; then
   # The sit ends every episode, so the controller over it is kept: a warm start of no
