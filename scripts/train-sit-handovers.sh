@@ -98,4 +98,8 @@ for more in $meta_more; do
     --learning-rate 1.5e-4 --seed "${more%%:*}" --iterations "${more##*:}" --run-dir "$run/meta-more-$round"
   "$bin" meta eval scenes/sit.ron --library "$lib" --trials "${META_TRIALS:-1000}"
 done
-echo "sit fitted to the controller's handovers in $lib (evaluations appended to $evals)"
+if [ "$sit_iters" != 0 ]; then
+  echo "sit fitted to the controller's handovers in $lib (evaluations appended to $evals)"
+else
+  echo "the sit in $lib left as it was (evaluations appended to $evals)"
+fi

@@ -264,6 +264,97 @@ fn the_ablation_study_plans_one_described_run_per_variant_and_seed() {
 }
 
 #[test]
+fn a_tiny_ablation_runs_every_plan_then_gathers_the_table_and_its_chart() {
+    // Two variants × two seeds, one iteration each, over the committed library: real training
+    // and evaluation two runs at a time, then the table with a spread over seeds, the CSV and the
+    // chart.
+    let dir = common::temp_dir("cli-ablate-tiny");
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let spec = dir.join("study.ron");
+    std::fs::write(
+        &spec,
+        format!(
+            "Ablation(library: \"{}\", seeds: [1, 2], iterations: 1, trials: 2, variants: [\
+             Variant(name: \"full model\"), \
+             Variant(name: \"fixed order walk→l-turn→sit\", chain: [\"walk_to\", \"turn_left\", \"sit\"])])",
+            root.join("skills/library").display()
+        ),
+    )
+    .unwrap();
+    let out = dir.join("study");
+    // Two runs at a time: each logs into its own folder, a line as each ends.
+    let text = ok(&repertoire(&["ablate", spec.to_str().unwrap(), "--out", out.to_str().unwrap(), "--jobs", "2"]));
+    assert_eq!(text.matches("): done").count(), 4, "{text}");
+    let log = std::fs::read_to_string(out.join("runs/fixed-order-walk-l-turn-sit-s2/log.txt")).unwrap();
+    assert!(log.contains("meta-controller written to") && log.contains("| front |"), "training and evaluation: {log}");
+    let md = std::fs::read_to_string(out.join("table.md")).unwrap();
+    assert!(md.starts_with("| variant | seeds | front: success / min dist (m) |"), "{md}");
+    assert!(md.contains("| falls, all zones |"), "{md}");
+    assert!(text.contains(&md), "the table is printed too: {text}");
+    for variant in ["full model", "fixed order walk→l-turn→sit"] {
+        let row = md.lines().find(|l| l.starts_with(&format!("| {variant} | 2 |"))).unwrap_or_else(|| panic!("{md}"));
+        assert_eq!(row.matches('±').count(), 2 * 4 + 1, "a spread per zone (success, distance) and for falls: {row}");
+    }
+    // The CSV's front success of the full model is the mean of its two seeds' reports.
+    let front = |seed: u64| {
+        let path = out.join(format!("runs/full-model-s{seed}/eval/report.json"));
+        let r: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+        100.0 * r["zones"][0]["success_rate"].as_f64().unwrap()
+    };
+    let csv = std::fs::read_to_string(out.join("table.csv")).unwrap();
+    let mut lines = csv.lines();
+    assert_eq!(
+        lines.next(),
+        Some(
+            "variant,zone,seeds,success_mean,success_sd,min_distance_mean,min_distance_sd,fall_rate_mean,fall_rate_sd"
+        )
+    );
+    let row: Vec<&str> =
+        lines.find(|l| l.starts_with("full model,front,2,")).unwrap_or_else(|| panic!("{csv}")).split(',').collect();
+    let mean: f64 = row[3].parse().unwrap();
+    assert!((mean - (front(1) + front(2)) / 2.0).abs() < 1e-3, "{row:?}");
+    assert_eq!(csv.lines().count(), 1 + 2 * 4, "{csv}");
+    let svg = std::fs::read_to_string(out.join("ablation.svg")).unwrap();
+    assert!(svg.contains("full model") && svg.contains("seeds 1, 2") && out.join("ablation.png").exists());
+    // Run again, nothing is retrained (the reports exist); the page takes the chart along.
+    let weights = out.join("runs/full-model-s1/meta/meta.safetensors");
+    let before = std::fs::metadata(&weights).unwrap().modified().unwrap();
+    ok(&repertoire(&["ablate", spec.to_str().unwrap(), "--out", out.to_str().unwrap()]));
+    assert_eq!(std::fs::metadata(&weights).unwrap().modified().unwrap(), before, "a run with a report is skipped");
+    ok(&repertoire(&["report", out.to_str().unwrap()]));
+    let page = std::fs::read_to_string(out.join("report/index.md")).unwrap();
+    assert!(
+        page.contains("## Ablation") && page.contains("(ablation.png)") && out.join("report/ablation.png").exists(),
+        "{page}"
+    );
+}
+
+#[test]
+fn an_ablation_run_that_fails_is_named_and_the_others_still_run() {
+    let dir = common::temp_dir("cli-ablate-fail");
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let spec = dir.join("study.ron");
+    std::fs::write(
+        &spec,
+        format!(
+            "Ablation(library: \"{}\", seeds: [1], iterations: 1, trials: 1, variants: [\
+             Variant(name: \"full model\"), Variant(name: \"no library\", library: \"{}\")])",
+            root.join("skills/library").display(),
+            dir.join("missing").display()
+        ),
+    )
+    .unwrap();
+    let out = dir.join("study");
+    let run = repertoire(&["ablate", spec.to_str().unwrap(), "--out", out.to_str().unwrap(), "--jobs", "2"]);
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(!run.status.success(), "{err}");
+    assert!(err.contains("1 of 2 runs failed") && err.contains("no-library-s1/plan.ron"), "{err}");
+    assert!(err.contains("no-library-s1/log.txt"), "names where its output went: {err}");
+    assert!(out.join("runs/full-model-s1/eval/report.json").exists(), "the other run went on");
+    assert!(!out.join("table.md").exists(), "no table from a study with a run missing");
+}
+
+#[test]
 fn zero_iterations_are_refused_rather_than_run_as_one() {
     // `--iterations 0` used to train one iteration and write it into the library.
     let dir = common::temp_dir("cli-zero-iterations");
@@ -304,6 +395,7 @@ fn zero_iterations_from_a_warm_start_copy_the_controller_pinned_to_the_library()
     );
     assert_eq!(weights(&copy), weights(&shipped), "pinned to the library's skills");
     assert!(copy.contains("iterations: 0,") && copy.contains(&format!("from: \"{}\"", from.display())), "{copy}");
+    assert!(copy.contains("curriculum: false,"), "no decision taken, so no curriculum ran: {copy}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

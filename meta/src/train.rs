@@ -534,7 +534,8 @@ impl<'z, E: Env> Session<'z, E> {
         let run = TrainedRun {
             samples: self.ppo.global_step,
             seconds: self.state.seconds + self.started.elapsed().as_secs_f64(),
-            curriculum: self.schedule.is_on(),
+            // A run that took no decision (`--iterations 0`, the re-pin) ran no curriculum.
+            curriculum: self.schedule.is_on() && self.ppo.global_step > 0,
             advances: self.schedule.into_history(),
             command: self.state.command,
             resumed: self.state.resumed,

@@ -4,8 +4,9 @@
 //! temporary file renamed into place, so a reader never sees half a picture. Charts:
 //! [`learning_curves`] from a run's `metrics.csv` (return, early terminations, every reward term),
 //! [`success_map`] (trial start positions around the chair, coloured by outcome),
-//! [`transition_matrix`] (counts of skill `from → to`), and [`curriculum_schedule`] (the open zone
-//! and the windowed success rate over training).
+//! [`transition_matrix`] (counts of skill `from → to`), [`curriculum_schedule`] (the open zone
+//! and the windowed success rate over training) and [`grouped_bars`] (an ablation's success per
+//! zone and variant).
 //!
 //! PNG text needs a TrueType font: the first of [`FONT_CANDIDATES`] that exists (or the file
 //! named by `REPERTOIRE_FONT`) is registered once per process; `scripts/setup.sh` installs
@@ -420,6 +421,78 @@ pub fn transition_matrix(
                     ("sans-serif", 14).into_font().color(&ink),
                 ))
                 .map_err(|e| e.to_string())?;
+            }
+        }
+        Ok(())
+    })
+}
+
+/// One row of [`grouped_bars`]: its label and one `(mean, sd)` per group, in percent.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BarRow {
+    /// Row label (e.g. an ablation's variant).
+    pub label: String,
+    /// Mean and standard deviation per group (sd 0: no whisker).
+    pub values: Vec<(f64, f64)>,
+}
+
+/// Horizontal grouped bars on a 0–100 % scale: one row per entry of `rows` (its label on the
+/// left), one coloured bar per group (named in the legend) labelled with its mean, and a whisker
+/// of ± one sd where the sd is above 0. For an ablation's success per zone and variant.
+pub fn grouped_bars(stem: &Path, title: &str, groups: &[String], rows: &[BarRow]) -> Result<[PathBuf; 2]> {
+    if let Some(r) = rows.iter().find(|r| r.values.len() != groups.len()) {
+        return Err(ReportError::Invalid {
+            path: stem.to_path_buf(),
+            message: format!("row `{}` has {} values for {} groups", r.label, r.values.len(), groups.len()),
+        });
+    }
+    const BAR: i32 = 15;
+    const GAP: i32 = 12;
+    const TOP: i32 = 78;
+    let row_h = BAR * groups.len().max(1) as i32 + GAP;
+    let height = (TOP + row_h * rows.len() as i32 + 40).max(200) as u32;
+    render!(stem, (SIZE.0 + 100, height), |area| {
+        let (w, h) = area.dim_in_pixel();
+        let (left, right) = (300i32, w as i32 - 50);
+        let x = |p: f64| left + ((right - left) as f64 * p.clamp(0.0, 100.0) / 100.0).round() as i32;
+        let text =
+            |s: &str, px: i32, py: i32, size: u32| Text::new(s.to_string(), (px, py), ("sans-serif", size).into_font());
+        area.draw(&text(title, 10, 10, 18)).map_err(|e| e.to_string())?;
+        for (k, g) in groups.iter().enumerate() {
+            let lx = left + 150 * k as i32;
+            let c = COLOURS[k % COLOURS.len()];
+            area.draw(&Rectangle::new([(lx, 44), (lx + 14, 58)], c.filled())).map_err(|e| e.to_string())?;
+            area.draw(&text(g, lx + 20, 43, 14)).map_err(|e| e.to_string())?;
+        }
+        let bottom = h as i32 - 34;
+        for tick in [0.0, 25.0, 50.0, 75.0, 100.0] {
+            let tx = x(tick);
+            area.draw(&PathElement::new(vec![(tx, TOP - 6), (tx, bottom)], RGBColor(225, 225, 225)))
+                .map_err(|e| e.to_string())?;
+            area.draw(&text(&format!("{tick:.0} %"), tx - 12, bottom + 8, 12)).map_err(|e| e.to_string())?;
+        }
+        for (i, row) in rows.iter().enumerate() {
+            let y0 = TOP + row_h * i as i32;
+            let label: String = row.label.chars().take(42).collect();
+            area.draw(&text(&label, 10, y0 + (row_h - GAP) / 2 - 8, 14)).map_err(|e| e.to_string())?;
+            for (k, &(mean, sd)) in row.values.iter().enumerate() {
+                let y = y0 + BAR * k as i32;
+                let c = COLOURS[k % COLOURS.len()];
+                if mean.is_finite() {
+                    area.draw(&Rectangle::new([(x(0.0), y), (x(mean).max(x(0.0) + 1), y + BAR - 2)], c.filled()))
+                        .map_err(|e| e.to_string())?;
+                    if sd.is_finite() && sd > 0.0 {
+                        let mid = y + BAR / 2 - 1;
+                        let (a, b) = (x(mean - sd), x(mean + sd));
+                        area.draw(&PathElement::new(vec![(a, mid), (b, mid)], BLACK)).map_err(|e| e.to_string())?;
+                        for end in [a, b] {
+                            area.draw(&PathElement::new(vec![(end, mid - 3), (end, mid + 3)], BLACK))
+                                .map_err(|e| e.to_string())?;
+                        }
+                    }
+                    let lx = x(mean + if sd.is_finite() { sd.max(0.0) } else { 0.0 }) + 5;
+                    area.draw(&text(&format!("{mean:.1}"), lx, y + 1, 11)).map_err(|e| e.to_string())?;
+                }
             }
         }
         Ok(())

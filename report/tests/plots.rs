@@ -3,7 +3,8 @@
 use std::path::{Path, PathBuf};
 
 use repertoire_report::{
-    CurriculumPoint, ReportError, StartPoint, grid_map, learning_curves, read_table, success_map, transition_matrix,
+    BarRow, CurriculumPoint, ReportError, StartPoint, grid_map, grouped_bars, learning_curves, read_table, success_map,
+    transition_matrix,
 };
 
 fn temp_dir(name: &str) -> PathBuf {
@@ -134,4 +135,32 @@ fn a_grid_map_labels_every_cell_and_a_misshapen_grid_is_refused() {
     }
     let err = grid_map(&dir.join("bad"), "t", "x", "y", &xs, &ys, &cells[..1]).unwrap_err();
     assert!(matches!(err, ReportError::Invalid { .. }), "{err}");
+}
+
+#[test]
+fn grouped_bars_draw_every_row_and_a_row_of_the_wrong_width_is_refused() {
+    let dir = temp_dir("bars");
+    let groups: Vec<String> = ["front", "sides", "behind"].map(String::from).to_vec();
+    let rows = vec![
+        BarRow { label: "full model".into(), values: vec![(52.6, 3.0), (4.5, 1.0), (0.0, 0.0)] },
+        BarRow { label: "flat: the sit policy alone".into(), values: vec![(0.0, 0.0), (0.0, 0.0), (0.0, 0.0)] },
+    ];
+    let [png, svg] = grouped_bars(&dir.join("ablation"), "seated, by zone", &groups, &rows).unwrap();
+    let full = ink(&png);
+    assert!(full > 0.01, "{full}");
+    let svg = std::fs::read_to_string(svg).unwrap();
+    for text in ["seated, by zone", "full model", "flat: the sit policy alone", "behind", "52.6"] {
+        assert!(svg.contains(text), "{text} missing from the SVG");
+    }
+    // Longer bars put more ink on the page.
+    let longer = vec![
+        BarRow { label: "full model".into(), values: vec![(95.0, 0.0), (90.0, 0.0), (85.0, 0.0)] },
+        rows[1].clone(),
+    ];
+    let [png, _] = grouped_bars(&dir.join("longer"), "seated, by zone", &groups, &longer).unwrap();
+    assert!(ink(&png) > full, "{} vs {full}", ink(&png));
+    let bad = vec![BarRow { label: "short".into(), values: vec![(1.0, 0.0)] }];
+    let err = grouped_bars(&dir.join("bad"), "x", &groups, &bad).unwrap_err();
+    assert!(err.to_string().contains("row `short` has 1 values for 3 groups"), "{err}");
+    assert!(!dir.join("bad.png").exists(), "nothing drawn for a refused chart");
 }

@@ -2,14 +2,18 @@
 //! independent run described by a file (`runs/<variant>-s<seed>/plan.ron`: the two commands it
 //! consists of), run as child processes of this binary, skipped when its report exists, so a
 //! scheduler can spread the plan files over machines instead. The reports are gathered into
-//! `table.md` and `table.csv`: success rate and minimum distance per zone, mean ± sd over seeds.
+//! `table.md` and `table.csv`: success rate and minimum distance per zone and falls, mean ± sd over
+//! seeds, with a chart of success per zone and variant (`ablation.png` / `.svg`).
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::Command;
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 use anyhow::{Context, Result, bail};
 use repertoire_meta::eval::MetaReport;
+use repertoire_report::{BarRow, grouped_bars};
 use serde::{Deserialize, Serialize};
 
 /// One variant of the full model.
@@ -144,8 +148,9 @@ pub struct Overrides {
     pub trials: Option<usize>,
 }
 
-/// Runs (or only plans) the study in `spec` into `out`, then writes the table.
-pub fn run(spec: &Path, out: &Path, plan_only: bool, overrides: &Overrides) -> Result<()> {
+/// Runs (or only plans) the study in `spec` into `out`, `jobs` runs at a time, then writes the
+/// table and its chart.
+pub fn run(spec: &Path, out: &Path, plan_only: bool, overrides: &Overrides, jobs: usize) -> Result<()> {
     let text = std::fs::read_to_string(spec).with_context(|| format!("reading {}", spec.display()))?;
     let ab: Ablation = ron::Options::default()
         .with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME)
@@ -170,36 +175,101 @@ pub fn run(spec: &Path, out: &Path, plan_only: bool, overrides: &Overrides) -> R
     }
     let plans = plan(&ab, spec.parent().unwrap_or(Path::new(".")), out);
     let exe = std::env::current_exe().context("locating the repertoire binary")?;
+    let mut todo = Vec::new();
     for p in &plans {
-        let dir = p.report.parent().and_then(Path::parent).expect("runs/<name>/eval/report.json");
-        std::fs::create_dir_all(dir)?;
+        let dir = run_dir(p);
+        std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;
         let text = ron::ser::to_string_pretty(p, ron::ser::PrettyConfig::new())?;
-        std::fs::write(dir.join("plan.ron"), text)?;
-        if plan_only || p.report.exists() {
-            continue;
-        }
-        for args in &p.commands {
-            tracing::info!(variant = %p.variant, seed = p.seed, command = %args.join(" "), "ablation run");
-            let status =
-                Command::new(&exe).args(args).status().with_context(|| format!("running {}", args.join(" ")))?;
-            if !status.success() {
-                bail!(
-                    "`repertoire {}` failed ({status}); the plan is in {}",
-                    args.join(" "),
-                    dir.join("plan.ron").display()
-                );
-            }
+        repertoire_report::write_atomic(&dir.join("plan.ron"), text.as_bytes())?;
+        if !plan_only && !p.report.exists() {
+            todo.push(p);
         }
     }
+    run_plans(&exe, &todo, jobs)?;
     if plan_only {
         println!("{} runs planned under {}", plans.len(), out.join("runs").display());
         return Ok(());
     }
-    let (md, csv) = table(&ab, &plans)?;
+    let (md, csv, zones, bars) = table(&ab, &plans)?;
     repertoire_report::write_atomic(&out.join("table.md"), md.as_bytes())?;
     repertoire_report::write_atomic(&out.join("table.csv"), csv.as_bytes())?;
+    let seeds = ab.seeds.iter().map(u64::to_string).collect::<Vec<_>>().join(", ");
+    let title = format!(
+        "success by zone ({} iterations per run, {} trials per zone; seed{} {seeds})",
+        ab.iterations,
+        ab.trials,
+        if ab.seeds.len() > 1 { "s" } else { "" }
+    );
+    grouped_bars(&out.join("ablation"), &title, &zones, &bars)?;
     print!("{md}");
-    println!("\ntable.md and table.csv written to {}", out.display());
+    println!("\ntable.md, table.csv and ablation.png/.svg written to {}", out.display());
+    Ok(())
+}
+
+/// A run's folder (`runs/<variant>-s<seed>`, the one its plan file lies in).
+fn run_dir(p: &Plan) -> &Path {
+    p.report.parent().and_then(Path::parent).expect("runs/<name>/eval/report.json")
+}
+
+/// Runs `plans` (each its commands in order), `jobs` at a time. One job shares this process's
+/// terminal with its run; with more, each run writes its output to `log.txt` in its folder, its
+/// rayon pool gets an equal share of the cores (unless `RAYON_NUM_THREADS` is set) and a line is
+/// printed as each ends. Every run is tried; the ones that failed are listed at the end.
+fn run_plans(exe: &Path, plans: &[&Plan], jobs: usize) -> Result<()> {
+    let jobs = jobs.clamp(1, plans.len().max(1));
+    let threads = (jobs > 1 && std::env::var_os("RAYON_NUM_THREADS").is_none())
+        .then(|| (std::thread::available_parallelism().map_or(1, |n| n.get()) / jobs).max(1));
+    let next = AtomicUsize::new(0);
+    let failures = Mutex::new(Vec::new());
+    std::thread::scope(|s| {
+        for _ in 0..jobs {
+            s.spawn(|| {
+                while let Some(p) = plans.get(next.fetch_add(1, Ordering::Relaxed)) {
+                    match run_plan(exe, p, jobs > 1, threads) {
+                        Ok(()) if jobs > 1 => println!("{} (seed {}): done", p.variant, p.seed),
+                        Ok(()) => {}
+                        Err(e) => failures.lock().expect("never poisoned").push(format!("{e:#}")),
+                    }
+                }
+            });
+        }
+    });
+    let failures = failures.into_inner().expect("never poisoned");
+    if !failures.is_empty() {
+        bail!("{} of {} runs failed:\n{}", failures.len(), plans.len(), failures.join("\n"));
+    }
+    Ok(())
+}
+
+/// Runs one plan's commands in order; `to_log`: their output into the run's `log.txt`.
+fn run_plan(exe: &Path, p: &Plan, to_log: bool, threads: Option<usize>) -> Result<()> {
+    let dir = run_dir(p);
+    let log = dir.join("log.txt");
+    for args in &p.commands {
+        tracing::info!(variant = %p.variant, seed = p.seed, command = %args.join(" "), "ablation run");
+        let mut cmd = Command::new(exe);
+        cmd.args(args);
+        if let Some(t) = threads {
+            cmd.env("RAYON_NUM_THREADS", t.to_string());
+        }
+        if to_log {
+            let file = std::fs::OpenOptions::new()
+                .create(true)
+                .append(true)
+                .open(&log)
+                .with_context(|| format!("{}: cannot open", log.display()))?;
+            cmd.stdout(file.try_clone().with_context(|| log.display().to_string())?).stderr(file);
+        }
+        let status = cmd.status().with_context(|| format!("running {}", args.join(" ")))?;
+        if !status.success() {
+            let output = if to_log { format!(", its output in {}", log.display()) } else { String::new() };
+            bail!(
+                "`repertoire {}` failed ({status}); the plan is in {}{output}",
+                args.join(" "),
+                dir.join("plan.ron").display()
+            );
+        }
+    }
     Ok(())
 }
 
@@ -211,7 +281,8 @@ fn mean_sd(v: &[f64]) -> (f64, f64) {
     (m, var.sqrt())
 }
 
-fn table(ab: &Ablation, plans: &[Plan]) -> Result<(String, String)> {
+/// The study's table (Markdown and CSV) and its chart's rows (success per zone, mean ± sd).
+fn table(ab: &Ablation, plans: &[Plan]) -> Result<(String, String, Vec<String>, Vec<BarRow>)> {
     let mut reports: Vec<(String, MetaReport)> = Vec::new();
     for p in plans {
         let text = std::fs::read_to_string(&p.report).with_context(|| format!("reading {}", p.report.display()))?;
@@ -220,27 +291,39 @@ fn table(ab: &Ablation, plans: &[Plan]) -> Result<(String, String)> {
     let zones: Vec<String> =
         reports.first().map(|(_, r)| r.zones.iter().map(|z| z.zone.clone()).collect()).unwrap_or_default();
     let mut md = format!(
-        "| variant | seeds | {} |\n",
+        "| variant | seeds | {} | falls, all zones |\n",
         zones.iter().map(|z| format!("{z}: success / min dist (m)")).collect::<Vec<_>>().join(" | ")
     );
-    let _ = writeln!(md, "|---|---:|{}", "---:|".repeat(zones.len()));
-    let mut csv = String::from("variant,zone,seeds,success_mean,success_sd,min_distance_mean,min_distance_sd\n");
+    let _ = writeln!(md, "|---|---:|{}---:|", "---:|".repeat(zones.len()));
+    let mut csv = String::from(
+        "variant,zone,seeds,success_mean,success_sd,min_distance_mean,min_distance_sd,fall_rate_mean,fall_rate_sd\n",
+    );
+    let mut bars = Vec::new();
     for v in &ab.variants {
         let mine: Vec<&MetaReport> = reports.iter().filter(|(n, _)| n == &v.name).map(|(_, r)| r).collect();
         let mut cells = Vec::new();
+        let mut values = Vec::new();
+        let mut falls = (0.0, 0.0);
         for z in &zones {
             let rows: Vec<_> = mine.iter().filter_map(|r| r.zones.iter().find(|row| &row.zone == z)).collect();
             let (sm, ss) = mean_sd(&rows.iter().map(|r| 100.0 * r.success_rate).collect::<Vec<_>>());
             let (dm, ds) = mean_sd(&rows.iter().map(|r| r.min_distance_mean).collect::<Vec<_>>());
+            let (fm, fs) = mean_sd(&rows.iter().map(|r| 100.0 * r.fall_rate).collect::<Vec<_>>());
             // A spread needs two seeds or more.
             cells.push(if rows.len() > 1 {
                 format!("{sm:.1} ± {ss:.1}% / {dm:.2} ± {ds:.2}")
             } else {
                 format!("{sm:.1}% / {dm:.2}")
             });
-            let _ = writeln!(csv, "{},{z},{},{sm:.3},{ss:.3},{dm:.4},{ds:.4}", v.name, mine.len());
+            values.push((sm, if rows.len() > 1 { ss } else { 0.0 }));
+            // The last zone is "all" where the evaluation covers several.
+            falls = (fm, fs);
+            let _ = writeln!(csv, "{},{z},{},{sm:.3},{ss:.3},{dm:.4},{ds:.4},{fm:.3},{fs:.3}", v.name, mine.len());
         }
-        let _ = writeln!(md, "| {} | {} | {} |", v.name, mine.len(), cells.join(" | "));
+        let falls =
+            if mine.len() > 1 { format!("{:.1} ± {:.1}%", falls.0, falls.1) } else { format!("{:.1}%", falls.0) };
+        let _ = writeln!(md, "| {} | {} | {} | {falls} |", v.name, mine.len(), cells.join(" | "));
+        bars.push(BarRow { label: v.name.clone(), values });
     }
-    Ok((md, csv))
+    Ok((md, csv, zones, bars))
 }

@@ -73,6 +73,10 @@ pub enum Command {
         /// Override the study's evaluation trials per zone.
         #[arg(long)]
         trials: Option<usize>,
+        /// Runs at a time (each then logs into its folder's log.txt and gets an equal share of
+        /// the cores for its rayon pool, unless RAYON_NUM_THREADS is set).
+        #[arg(long, default_value_t = 1, value_parser = crate::cli::at_least_one)]
+        jobs: usize,
     },
     /// Gather a run's charts (PNG + SVG) and tables into DIR/report/index.md and index.html:
     /// learning curves, curriculum schedule, success map, transition matrices, ablation table.
@@ -144,8 +148,8 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Latent(cmd) => latent::run(cmd),
         Command::Replay(args) => replay::replay(args),
         Command::Export(args) => replay::export(args),
-        Command::Ablate { spec, out, plan_only, seeds, iterations, trials } => {
-            ablate::run(&spec, &out, plan_only, &ablate::Overrides { seeds, iterations, trials })
+        Command::Ablate { spec, out, plan_only, seeds, iterations, trials, jobs } => {
+            ablate::run(&spec, &out, plan_only, &ablate::Overrides { seeds, iterations, trials }, jobs)
         }
         Command::Report { dir } => {
             let page = report::run(&dir)?;

@@ -156,7 +156,18 @@ pub fn run(dir: &Path) -> Result<PathBuf> {
     let table = dir.join("table.md");
     if table.exists() {
         let text = std::fs::read_to_string(&table).with_context(|| format!("{}: cannot read", table.display()))?;
-        sections.push(Section { title: "Ablation".into(), text, charts: Vec::new() });
+        // `ablate` draws its chart beside the table; the page takes a copy into its folder.
+        let mut charts = Vec::new();
+        if dir.join("ablation.png").exists() && dir.join("ablation.svg").exists() {
+            let pair = ["png", "svg"].map(|ext| out.join(format!("ablation.{ext}")));
+            for (ext, to) in ["png", "svg"].iter().zip(&pair) {
+                let bytes = std::fs::read(dir.join(format!("ablation.{ext}")))
+                    .with_context(|| format!("{}: cannot read", dir.join(format!("ablation.{ext}")).display()))?;
+                write_atomic(to, &bytes)?;
+            }
+            charts.push(pair);
+        }
+        sections.push(Section { title: "Ablation".into(), text, charts });
     }
 
     if sections.is_empty() {
