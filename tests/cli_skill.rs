@@ -263,24 +263,28 @@ fn the_ablation_study_plans_one_described_run_per_variant_and_seed() {
     assert!(err.contains("bad.ron:1:") && err.contains("nme"), "{err}");
 }
 
+/// Writes `DIR/study.ron`: one iteration per run over the committed library, with `budget`
+/// (seeds and trials) and `variants`.
+fn study(dir: &Path, budget: &str, variants: &str) -> std::path::PathBuf {
+    let library = Path::new(env!("CARGO_MANIFEST_DIR")).join("skills/library");
+    let spec = dir.join("study.ron");
+    let text = format!("Ablation(library: \"{}\", iterations: 1, {budget}, variants: [{variants}])", library.display());
+    std::fs::write(&spec, text).unwrap();
+    spec
+}
+
 #[test]
 fn a_tiny_ablation_runs_every_plan_then_gathers_the_table_and_its_chart() {
     // Two variants × two seeds, one iteration each, over the committed library: real training
     // and evaluation two runs at a time, then the table with a spread over seeds, the CSV and the
     // chart.
     let dir = common::temp_dir("cli-ablate-tiny");
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let spec = dir.join("study.ron");
-    std::fs::write(
-        &spec,
-        format!(
-            "Ablation(library: \"{}\", seeds: [1, 2], iterations: 1, trials: 2, variants: [\
-             Variant(name: \"full model\"), \
-             Variant(name: \"fixed order walk→l-turn→sit\", chain: [\"walk_to\", \"turn_left\", \"sit\"])])",
-            root.join("skills/library").display()
-        ),
-    )
-    .unwrap();
+    let spec = study(
+        &dir,
+        "seeds: [1, 2], trials: 2",
+        "Variant(name: \"full model\"), \
+         Variant(name: \"fixed order walk→l-turn→sit\", chain: [\"walk_to\", \"turn_left\", \"sit\"])",
+    );
     let out = dir.join("study");
     // Two runs at a time: each logs into its own folder, a line as each ends.
     let text = ok(&repertoire(&["ablate", spec.to_str().unwrap(), "--out", out.to_str().unwrap(), "--jobs", "2"]));
@@ -332,18 +336,12 @@ fn a_tiny_ablation_runs_every_plan_then_gathers_the_table_and_its_chart() {
 #[test]
 fn an_ablation_run_that_fails_is_named_and_the_others_still_run() {
     let dir = common::temp_dir("cli-ablate-fail");
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let spec = dir.join("study.ron");
-    std::fs::write(
-        &spec,
-        format!(
-            "Ablation(library: \"{}\", seeds: [1], iterations: 1, trials: 1, variants: [\
-             Variant(name: \"full model\"), Variant(name: \"no library\", library: \"{}\")])",
-            root.join("skills/library").display(),
-            dir.join("missing").display()
-        ),
-    )
-    .unwrap();
+    let missing = dir.join("missing");
+    let spec = study(
+        &dir,
+        "seeds: [1], trials: 1",
+        &format!("Variant(name: \"full model\"), Variant(name: \"no library\", library: \"{}\")", missing.display()),
+    );
     let out = dir.join("study");
     let run = repertoire(&["ablate", spec.to_str().unwrap(), "--out", out.to_str().unwrap(), "--jobs", "2"]);
     let err = String::from_utf8_lossy(&run.stderr);
