@@ -273,6 +273,11 @@ fn run_plan(exe: &Path, p: &Plan, to_log: bool, threads: Option<usize>) -> Resul
     Ok(())
 }
 
+/// "m ± s%" over `seeds` runs; a spread needs two seeds or more, so one run gives "m%".
+fn percent(m: f64, s: f64, seeds: usize) -> String {
+    if seeds > 1 { format!("{m:.1} ± {s:.1}%") } else { format!("{m:.1}%") }
+}
+
 /// Mean and sample standard deviation.
 fn mean_sd(v: &[f64]) -> (f64, f64) {
     let n = v.len().max(1) as f64;
@@ -303,25 +308,20 @@ fn table(ab: &Ablation, plans: &[Plan]) -> Result<(String, String, Vec<String>, 
         let mine: Vec<&MetaReport> = reports.iter().filter(|(n, _)| n == &v.name).map(|(_, r)| r).collect();
         let mut cells = Vec::new();
         let mut values = Vec::new();
-        let mut falls = (0.0, 0.0);
+        let mut falls = Vec::new();
         for z in &zones {
             let rows: Vec<_> = mine.iter().filter_map(|r| r.zones.iter().find(|row| &row.zone == z)).collect();
             let (sm, ss) = mean_sd(&rows.iter().map(|r| 100.0 * r.success_rate).collect::<Vec<_>>());
             let (dm, ds) = mean_sd(&rows.iter().map(|r| r.min_distance_mean).collect::<Vec<_>>());
             let (fm, fs) = mean_sd(&rows.iter().map(|r| 100.0 * r.fall_rate).collect::<Vec<_>>());
-            // A spread needs two seeds or more.
-            cells.push(if rows.len() > 1 {
-                format!("{sm:.1} ± {ss:.1}% / {dm:.2} ± {ds:.2}")
-            } else {
-                format!("{sm:.1}% / {dm:.2}")
-            });
+            let distance = if rows.len() > 1 { format!("{dm:.2} ± {ds:.2}") } else { format!("{dm:.2}") };
+            cells.push(format!("{} / {distance}", percent(sm, ss, rows.len())));
             values.push((sm, if rows.len() > 1 { ss } else { 0.0 }));
-            // The last zone is "all" where the evaluation covers several.
-            falls = (fm, fs);
+            falls.push(percent(fm, fs, rows.len()));
             let _ = writeln!(csv, "{},{z},{},{sm:.3},{ss:.3},{dm:.4},{ds:.4},{fm:.3},{fs:.3}", v.name, mine.len());
         }
-        let falls =
-            if mine.len() > 1 { format!("{:.1} ± {:.1}%", falls.0, falls.1) } else { format!("{:.1}%", falls.0) };
+        // The last zone is "all" where the evaluation covers several.
+        let falls = falls.pop().unwrap_or_default();
         let _ = writeln!(md, "| {} | {} | {} | {falls} |", v.name, mine.len(), cells.join(" | "));
         bars.push(BarRow { label: v.name.clone(), values });
     }
