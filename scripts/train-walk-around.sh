@@ -10,10 +10,17 @@
 #      with walk_around in walk_to's place: `--replace walk_to=walk_around`), META_ITERS (800)
 #      iterations, every zone open, into LIBRARY/meta-around, then evaluated there.
 # Usage: bash scripts/train-walk-around.sh [LIBRARY] — env: TRIALS (1000), EXTRA (more arguments
-# for the skill's training).
+# for the skill's training). LIBRARY (default runs/library-around) is written into; when it does
+# not exist it starts as a copy of skills/library, so the committed library is left as it is.
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
-lib="${1:-skills/library}"
+lib="${1:-runs/library-around}"
+if [[ ! -e "$lib" ]]; then
+  mkdir -p "$(dirname "$lib")"
+  cp -r skills/library "$lib.tmp.$$"
+  mv "$lib.tmp.$$" "$lib"
+  echo "$lib: a copy of skills/library"
+fi
 evals="$lib/evals.md"
 
 "$bin" skill train "$specs/walk_around.ron" --warm-start-from walk_to --explore-log-std -2.2 \

@@ -439,6 +439,9 @@ pub struct MetaEnv {
     /// chair) this episode; `None` while it has not. Diagnostics (`meta eval`'s `touched`):
     /// a walk that ends in a fall after touching the chair bumped into it.
     pub touched: Option<usize>,
+    /// Per skill: whether the graph lets nothing follow it (the sit), so touching the chair
+    /// while it plays is not a bump ([`TaskSpec::touch_penalty`]).
+    terminal: Vec<bool>,
     /// When set, each episode is recorded at the control rate (see [`MetaEnv::record_episodes`]).
     record: Option<(RecordOptions, Recorder)>,
 }
@@ -476,6 +479,7 @@ impl MetaEnv {
             zone: String::new(),
             chosen: Vec::new(),
             touched: None,
+            terminal: crate::planner::terminal_skills(&setup),
             record: None,
             setup,
         }
@@ -772,12 +776,17 @@ impl Env for MetaEnv {
         let mut ran = 0usize;
         let control_dt = 1.0 / self.setup.control_hz();
         let ends_on_success = self.setup.task.ends_on_success();
+        let watch_bumps = self.setup.task.touch_penalty() > 0.0 && !self.terminal[option];
+        let mut bumped = false;
         for _ in 0..self.setup.ticks {
             self.tick(option);
             ran += 1;
             failed = self.task.tick(&self.setup.task, &self.world, control_dt);
-            if self.touched.is_none() && self.world.contacts().character_on_prop(self.setup.task.frame_prop()) {
-                self.touched = Some(option);
+            if (self.touched.is_none() || (watch_bumps && !bumped))
+                && self.world.contacts().character_on_prop(self.setup.task.frame_prop())
+            {
+                self.touched.get_or_insert(option);
+                bumped = watch_bumps;
             }
             self.record_frame();
             if self.world.has_fallen() || !self.world.root_height().is_finite() {
@@ -790,7 +799,7 @@ impl Env for MetaEnv {
         }
         self.decisions += 1;
         let dt = ran as f64 * control_dt;
-        let reward = self.task.decision_reward(&self.setup.task, &self.world, fell, dt);
+        let reward = self.task.decision_reward(&self.setup.task, &self.world, fell, bumped, dt);
         let success = self.task.succeeded();
         // Decisions can end early (a clip's end), so the limit is in simulated time, with a
         // decision count as a backstop.
@@ -815,6 +824,9 @@ impl Env for MetaEnv {
         StepOutcome { reward, terminated: ended, truncated, terms }
     }
 
+    /// The world's state, then [`HEAD`] values of the episode's (the current skill, its phase,
+    /// the walk's target, decisions, switches, the skill that first touched the chair), the
+    /// task's state and the props bound to skills' roles.
     fn snapshot(&self) -> Vec<f64> {
         let mut out = Vec::new();
         self.world.snapshot(&mut out);
@@ -825,6 +837,7 @@ impl Env for MetaEnv {
             self.target[1],
             f64::from(self.decisions),
             f64::from(self.switches),
+            self.touched.map_or(-1.0, |c| c as f64),
         ]);
         out.extend(self.task.snapshot());
         for (c, ids) in self.bound.iter().enumerate() {
@@ -838,14 +851,21 @@ impl Env for MetaEnv {
     fn restore(&mut self, state: &[f64]) -> std::result::Result<(), String> {
         let w = self.world.snapshot_len();
         let roles: usize = self.setup.skills.iter().filter(|s| s.props.has_roles()).map(|s| s.props.ids.len()).sum();
-        let want = w + 6 + self.task.snapshot_len() + roles;
+        let want = w + HEAD + self.task.snapshot_len() + roles;
         if state.len() != want {
             return Err(format!("meta snapshot has {} values, expected {want}", state.len()));
         }
         let props = self.setup.model.props.len();
-        let tail = w + 6 + self.task.snapshot_len();
+        let tail = w + HEAD + self.task.snapshot_len();
         if let Some(v) = state[tail..].iter().find(|v| !(v.is_finite() && **v >= 0.0 && (**v as usize) < props)) {
             return Err(format!("meta snapshot binds a skill's prop to {v}, not one of the {props} props"));
+        }
+        let skills = self.setup.skills.len();
+        for (i, what) in [(0, "current skill"), (6, "skill that first touched the chair")] {
+            let v = state[w + i];
+            if !(v == -1.0 || (v >= 0.0 && v.fract() == 0.0 && (v as usize) < skills)) {
+                return Err(format!("meta snapshot's {what} is {v}, not one of the {skills} skills"));
+            }
         }
         self.world.restore(&state[..w]).map_err(|e| e.to_string())?;
         let s = &state[w..];
@@ -854,9 +874,10 @@ impl Env for MetaEnv {
         self.target = [s[2], s[3]];
         self.decisions = s[4] as u32;
         self.switches = s[5] as u32;
+        self.touched = (s[6] >= 0.0).then_some(s[6] as usize);
         let t = self.task.snapshot_len();
-        self.task.restore(&s[6..6 + t]);
-        let mut bound = s[6 + t..].iter();
+        self.task.restore(&s[HEAD..HEAD + t]);
+        let mut bound = s[HEAD + t..].iter();
         for (c, ids) in self.bound.iter_mut().enumerate() {
             if self.setup.skills[c].props.has_roles() {
                 for (id, v) in ids.iter_mut().zip(bound.by_ref()) {
@@ -867,6 +888,9 @@ impl Env for MetaEnv {
         Ok(())
     }
 }
+
+/// Values of a [`MetaEnv`] snapshot between the world's and the task's.
+const HEAD: usize = 7;
 
 /// An error naming the first of `zones` that `model`'s scenario does not declare.
 pub fn check_zones(model: &WorldModel, zones: &[String]) -> Result<()> {

@@ -228,7 +228,14 @@ impl Task for LatentTask {
         let failed = self.state.tick(&self.setup.task, world, dt);
         let fell = world.has_fallen() || !world.root_height().is_finite();
         let success = self.state.succeeded();
-        let reward = self.state.decision_reward(&self.setup.task, world, fell, dt) * self.reward_scale;
+        // No skills here, so a bump is any touch of the chair while not seated.
+        let bumped = match self.setup.task {
+            TaskSpec::Sit { seat, facing, touch_penalty, .. } if touch_penalty > 0.0 => {
+                world.contacts().character_on_prop(seat) && !world.seated_on(seat, facing)
+            }
+            _ => false,
+        };
+        let reward = self.state.decision_reward(&self.setup.task, world, fell, bumped, dt) * self.reward_scale;
         let ended = (self.setup.task.ends_on_success() && success) || fell || failed;
         let truncated = !ended && self.ticks >= self.setup.max_ticks;
         // The per-episode figures, on the last tick only (the learning core sums terms over an

@@ -45,6 +45,9 @@ pub enum TaskSpec {
         approach: SitApproach,
         /// What a fall does to the approach reward paid so far.
         on_fall: SitFall,
+        /// Taken from a decision's reward when the character touched the chair during it
+        /// outside the sit (the scenario's `touch_penalty`; see [`TaskState::decision_reward`]).
+        touch_penalty: f64,
     },
     /// The warehouse (see [`crate::warehouse`]).
     Warehouse(WarehouseSpec),
@@ -70,7 +73,7 @@ impl TaskSpec {
     pub fn of(model: &WorldModel) -> Result<Self> {
         let sc = &model.scenario;
         match &sc.scenario.task {
-            ScenarioTask::Sit { seat, hold_s, facing_deg, approach, on_fall, .. } => {
+            ScenarioTask::Sit { seat, hold_s, facing_deg, approach, on_fall, touch_penalty, .. } => {
                 let seat = model.prop_id(seat).ok_or_else(|| MetaError::Invalid(format!("no seat prop `{seat}`")))?;
                 Ok(TaskSpec::Sit {
                     seat,
@@ -78,6 +81,7 @@ impl TaskSpec {
                     facing: facing_deg.to_radians(),
                     approach: *approach,
                     on_fall: *on_fall,
+                    touch_penalty: *touch_penalty,
                 })
             }
             ScenarioTask::Warehouse(w) => Ok(TaskSpec::Warehouse(WarehouseSpec::new(model, w)?)),
@@ -144,6 +148,15 @@ impl TaskSpec {
             TaskSpec::Sit { .. } => ["seat_distance", "seated", "seated_s", "min_distance"],
             TaskSpec::Warehouse(_) => ["phase", "phases_done", "focal_distance", "hands_on_box"],
             TaskSpec::Toss(_) => ["caught", "bucket_s", "ball_to_bucket", "hands_on_ball"],
+        }
+    }
+
+    /// What a decision that bumps into the chair outside the sit costs (the sit task's
+    /// `touch_penalty`; 0 for the other tasks).
+    pub fn touch_penalty(&self) -> f64 {
+        match self {
+            TaskSpec::Sit { touch_penalty, .. } => *touch_penalty,
+            _ => 0.0,
         }
     }
 
@@ -364,10 +377,15 @@ impl TaskState {
         }
     }
 
-    /// The reward of a decision that ran `seconds` and ended with a fall when `fell`.
-    pub fn decision_reward(&mut self, spec: &TaskSpec, world: &World, fell: bool, seconds: f64) -> f32 {
+    /// The reward of a decision that ran `seconds` and ended with a fall when `fell`. `bumped`:
+    /// the character touched the task's frame prop (the chair) during the decision while a
+    /// skill that is not terminal played; sitting pays the scenario's `touch_penalty` for it.
+    pub fn decision_reward(&mut self, spec: &TaskSpec, world: &World, fell: bool, bumped: bool, seconds: f64) -> f32 {
         match (spec, self) {
-            (TaskSpec::Sit { seat, facing, approach, on_fall, .. }, TaskState::Sit { last_potential, paid, .. }) => {
+            (
+                TaskSpec::Sit { seat, facing, approach, on_fall, touch_penalty, .. },
+                TaskState::Sit { last_potential, paid, .. },
+            ) => {
                 let d = sit_potential(world, *seat, approach);
                 let on_seat = world.seated_on(*seat, *facing);
                 let reward = if fell {
@@ -383,7 +401,8 @@ impl TaskState {
                     r
                 };
                 *last_potential = d;
-                reward as f32
+                let bump = if bumped { *touch_penalty } else { 0.0 };
+                (reward - bump) as f32
             }
             (TaskSpec::Warehouse(_), TaskState::Warehouse(judge)) => judge.take_reward(),
             (TaskSpec::Toss(t), TaskState::Toss(judge)) => {

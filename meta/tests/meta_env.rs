@@ -592,7 +592,7 @@ fn a_fall_forfeits_the_approach_reward_only_when_the_scenario_says_so() {
     let path: Vec<f64> = vec![2.5, 2.0, 1.5, 1.0];
     let mut totals = Vec::new();
     for on_fall in [SitFall::Keep, SitFall::Forfeit] {
-        let spec = TaskSpec::Sit { seat: chair, hold_s: 3.0, facing: 1.0, approach, on_fall };
+        let spec = TaskSpec::Sit { seat: chair, hold_s: 3.0, facing: 1.0, approach, on_fall, touch_penalty: 0.0 };
         let mut state = spec.new_state(60.0);
         let mut rng = EnvRng::seed_from_u64(1);
         world.place_standing(pl.pos[0] + path[0], pl.pos[1], pl.yaw + std::f64::consts::PI);
@@ -601,7 +601,7 @@ fn a_fall_forfeits_the_approach_reward_only_when_the_scenario_says_so() {
         let mut sum = 0.0;
         for &x in &path[1..] {
             world.place_standing(pl.pos[0] + x, pl.pos[1], pl.yaw + std::f64::consts::PI);
-            let r = state.decision_reward(&spec, world, false, 0.5);
+            let r = state.decision_reward(&spec, world, false, false, 0.5);
             assert!(r > 0.0, "walking towards the chair pays: {r}");
             sum += f64::from(r);
         }
@@ -610,8 +610,8 @@ fn a_fall_forfeits_the_approach_reward_only_when_the_scenario_says_so() {
         // A copy of the episode carries what was paid.
         let mut copy = spec.new_state(60.0);
         copy.restore(&state.snapshot());
-        let fall = state.decision_reward(&spec, world, true, 0.5);
-        let copied = copy.decision_reward(&spec, world, true, 0.5);
+        let fall = state.decision_reward(&spec, world, true, false, 0.5);
+        let copied = copy.decision_reward(&spec, world, true, false, 0.5);
         assert_eq!(fall, copied, "the restored copy forfeits the same");
         totals.push((sum, f64::from(fall)));
     }
@@ -984,8 +984,67 @@ fn the_first_touch_of_the_chair_is_kept_with_the_skill_playing() {
     act[0] = 0.0;
     env.step(&act, &mut obs);
     assert_eq!(env.touched, Some(turn), "the first touch is kept");
+    // A copy of the episode (the planner's) carries it; a corrupt one is refused.
+    let snap = env.snapshot();
+    let mut copy = MetaEnv::new(Arc::clone(&s));
+    copy.reset(&mut EnvRng::seed_from_u64(6), &mut obs);
+    copy.restore(&snap).expect("restore");
+    assert_eq!(copy.touched, Some(turn), "the copy knows the turn touched the chair");
+    let w = env.world().snapshot_len();
+    let mut bad = snap.clone();
+    bad[w + 6] = 42.0;
+    let err = copy.restore(&bad).expect_err("skill 42");
+    assert!(err.contains("touched the chair") && err.contains("42"), "{err}");
     env.reset(&mut EnvRng::seed_from_u64(6), &mut obs);
     assert_eq!(env.touched, None, "a new episode starts untouched");
+    copy.restore(&env.snapshot()).expect("restore");
+    assert_eq!(copy.touched, None, "and so does its copy");
+}
+
+#[test]
+fn a_bump_into_the_chair_outside_the_sit_costs_the_touch_penalty() {
+    // The same decision from the same state, with and without `touch_penalty`: standing where
+    // the seat is, a turn touches the chair and pays 0.5 less; the sit (terminal in the graph)
+    // touches it too and pays the same; away from the chair nothing changes.
+    let builtin = sit_scenario();
+    let approach = "approach: Spot(ahead_m: 0.4, heading_m: 0.3)),";
+    assert!(builtin.text.contains(approach), "the default sit task's approach moved");
+    let text = builtin.text.replace(approach, "approach: Spot(ahead_m: 0.4, heading_m: 0.3), touch_penalty: 0.5),");
+    let model = Arc::new(WorldModel::build(ScenarioFile::parse(&builtin.path, text).expect("parses")).expect("scene"));
+    let graph = SkillGraph::of(&model.scenario.scenario);
+    let penalised = Arc::new(MetaSetup::new(model, library(), graph).expect("meta setup"));
+    assert_eq!(penalised.task.touch_penalty(), 0.5);
+    let plain = setup(None);
+    assert_eq!(plain.task.touch_penalty(), 0.0, "the default scenario keeps the paper's reward");
+    let chair = plain.model.prop_id("chair").expect("chair");
+    // The last of the decisions `skills`, started on the seat's spot (or 3 m in front of it),
+    // in each setup (the sit is no start skill, so a turn plays before it).
+    let reward = |s: &Arc<MetaSetup>, skills: &[&str], on_chair: bool| {
+        let mut env = MetaEnv::new(Arc::clone(s));
+        let mut obs = vec![0.0; env.obs_dim()];
+        env.reset(&mut EnvRng::seed_from_u64(5), &mut obs);
+        let pl = env.world().placements()[chair];
+        let ahead = if on_chair { 0.15 } else { 3.0 };
+        env.world_mut().place_standing(pl.pos[0] + ahead, pl.pos[1] + if on_chair { 0.15 } else { 0.0 }, pl.yaw);
+        let mut last = 0.0;
+        for skill in skills {
+            let act = [s.graph.index(skill).expect("skill") as f32, 0.0, 0.0];
+            let out = env.step(&act, &mut obs);
+            assert_eq!(env.current(), s.graph.index(skill), "{skill} plays");
+            last = out.reward;
+        }
+        (last, env.touched.is_some(), env.world().contacts().character_on_prop(chair))
+    };
+    let (turn, touched, _) = reward(&plain, &["turn_left"], true);
+    assert!(touched, "the turn started on the seat's spot touches the chair");
+    let (turn_penalised, ..) = reward(&penalised, &["turn_left"], true);
+    assert!((turn - turn_penalised - 0.5).abs() < 1e-5, "the bump costs 0.5: {turn} against {turn_penalised}");
+    let (sit, _, touching) = reward(&plain, &["turn_left", "sit"], true);
+    assert!(touching, "the sit started on the seat's spot ends its decision on the chair");
+    assert_eq!(sit, reward(&penalised, &["turn_left", "sit"], true).0, "the sit's touch costs nothing");
+    let (away, touched, _) = reward(&plain, &["turn_left"], false);
+    assert!(!touched, "3 m from the chair the turn touches nothing");
+    assert_eq!(away, reward(&penalised, &["turn_left"], false).0, "no touch, no cost");
 }
 
 #[test]

@@ -212,6 +212,21 @@ fn prop_bindings_parse_and_bad_ones_are_located() {
         Task::Sit { on_fall, .. } => assert_eq!(on_fall, SitFall::Forfeit),
         other => panic!("{other:?}"),
     }
+    // Touching the chair outside the sit costs nothing by default (the paper's reward).
+    match parse(&format!("{HEAD}\n    {sit}\n)")).unwrap().scenario.task {
+        Task::Sit { touch_penalty, .. } => assert_eq!(touch_penalty, 0.0),
+        other => panic!("{other:?}"),
+    }
+    let text = format!("{HEAD}\n    task: Sit(seat: \"chair\", touch_penalty: 0.25),\n)");
+    match parse(&text).unwrap().scenario.task {
+        Task::Sit { touch_penalty, .. } => assert_eq!(touch_penalty, 0.25),
+        other => panic!("{other:?}"),
+    }
+    for bad in ["-0.5", "inf"] {
+        let text = format!("{HEAD}\n    task: Sit(seat: \"chair\", touch_penalty: {bad}),\n)");
+        let msg = parse(&text).err().unwrap_or_else(|| panic!("accepted {bad}")).to_string();
+        assert!(msg.starts_with("task.ron:") && msg.contains("touch_penalty"), "{bad} → {msg}");
+    }
     let text = format!("{HEAD}\n    task: Sit(seat: \"chair\", on_fall: Refund),\n)");
     let msg = parse(&text).err().map(|e| e.to_string()).unwrap_or_else(|| panic!("accepted an unknown on_fall"));
     assert!(msg.starts_with("task.ron:") && msg.contains("Refund"), "{msg}");
@@ -277,6 +292,31 @@ fn every_shipped_scenario_builds_and_the_paper_reward_variant_differs_from_sit_o
     }
     paper.name = sit.name.clone();
     assert_eq!(paper, sit, "the same scene, skills, zones and success test");
+}
+
+#[test]
+fn the_forfeit_and_touch_variants_differ_from_sit_only_in_their_reward() {
+    let sit = ScenarioFile::load(shipped("sit.ron")).unwrap().scenario;
+    let mut forfeit = ScenarioFile::load(shipped("sit_forfeit.ron")).unwrap().scenario;
+    match &mut forfeit.task {
+        Task::Sit { on_fall, touch_penalty, .. } => {
+            assert_eq!((*on_fall, *touch_penalty), (SitFall::Forfeit, 0.0));
+            *on_fall = SitFall::Keep;
+        }
+        other => panic!("{other:?}"),
+    }
+    let mut touch = ScenarioFile::load(shipped("sit_touch.ron")).unwrap().scenario;
+    match &mut touch.task {
+        Task::Sit { on_fall, touch_penalty, .. } => {
+            assert_eq!((*on_fall, *touch_penalty), (SitFall::Keep, 0.5));
+            *touch_penalty = 0.0;
+        }
+        other => panic!("{other:?}"),
+    }
+    for mut variant in [forfeit, touch] {
+        variant.name = sit.name.clone();
+        assert_eq!(variant, sit, "the same scene, skills, zones and success test");
+    }
 }
 
 #[test]

@@ -154,9 +154,9 @@ fn on(base: &Option<String>) -> String {
 /// One line for people: what the task asks and how it is judged.
 fn describe_task(task: &Task) -> String {
     match task {
-        Task::Sit { seat, hold_s, time_limit_s, facing_deg, approach, on_fall } => format!(
+        Task::Sit { seat, hold_s, time_limit_s, facing_deg, approach, on_fall, touch_penalty } => format!(
             "Sit on `{seat}`: pelvis on the seat, facing within {facing_deg}° of the chair's front, for {hold_s} s \
-             within {time_limit_s} s; {}{}",
+             within {time_limit_s} s; {}{}{}",
             match approach {
                 SitApproach::Seat => "rewarded for approaching the seat".to_string(),
                 SitApproach::Spot { ahead_m, turn_within_m: None, .. } =>
@@ -169,6 +169,11 @@ fn describe_task(task: &Task) -> String {
             match on_fall {
                 SitFall::Keep => "",
                 SitFall::Forfeit => "; a fall forfeits that reward",
+            },
+            if *touch_penalty > 0.0 {
+                format!("; touching the chair before the sit costs {touch_penalty} per decision")
+            } else {
+                String::new()
             }
         ),
         Task::Warehouse(w) => format!(
