@@ -824,7 +824,7 @@ impl Env for MetaEnv {
         StepOutcome { reward, terminated: ended, truncated, terms }
     }
 
-    /// The world's state, then [`HEAD`] values of the episode's (the current skill, its phase,
+    /// The world's state, then the episode's [`EPISODE_VALUES`] (the current skill, its phase,
     /// the walk's target, decisions, switches, the skill that first touched the chair), the
     /// task's state and the props bound to skills' roles.
     fn snapshot(&self) -> Vec<f64> {
@@ -851,12 +851,12 @@ impl Env for MetaEnv {
     fn restore(&mut self, state: &[f64]) -> std::result::Result<(), String> {
         let w = self.world.snapshot_len();
         let roles: usize = self.setup.skills.iter().filter(|s| s.props.has_roles()).map(|s| s.props.ids.len()).sum();
-        let want = w + HEAD + self.task.snapshot_len() + roles;
+        let want = w + EPISODE_VALUES + self.task.snapshot_len() + roles;
         if state.len() != want {
             return Err(format!("meta snapshot has {} values, expected {want}", state.len()));
         }
         let props = self.setup.model.props.len();
-        let tail = w + HEAD + self.task.snapshot_len();
+        let tail = w + EPISODE_VALUES + self.task.snapshot_len();
         if let Some(v) = state[tail..].iter().find(|v| !(v.is_finite() && **v >= 0.0 && (**v as usize) < props)) {
             return Err(format!("meta snapshot binds a skill's prop to {v}, not one of the {props} props"));
         }
@@ -876,8 +876,8 @@ impl Env for MetaEnv {
         self.switches = s[5] as u32;
         self.touched = (s[6] >= 0.0).then_some(s[6] as usize);
         let t = self.task.snapshot_len();
-        self.task.restore(&s[HEAD..HEAD + t]);
-        let mut bound = s[HEAD + t..].iter();
+        self.task.restore(&s[EPISODE_VALUES..EPISODE_VALUES + t]);
+        let mut bound = s[EPISODE_VALUES + t..].iter();
         for (c, ids) in self.bound.iter_mut().enumerate() {
             if self.setup.skills[c].props.has_roles() {
                 for (id, v) in ids.iter_mut().zip(bound.by_ref()) {
@@ -889,8 +889,9 @@ impl Env for MetaEnv {
     }
 }
 
-/// Values of a [`MetaEnv`] snapshot between the world's and the task's.
-const HEAD: usize = 7;
+/// How many values of a [`MetaEnv`] snapshot describe the episode, between the world's and the
+/// task's.
+const EPISODE_VALUES: usize = 7;
 
 /// An error naming the first of `zones` that `model`'s scenario does not declare.
 pub fn check_zones(model: &WorldModel, zones: &[String]) -> Result<()> {
