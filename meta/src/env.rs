@@ -444,7 +444,28 @@ pub struct MetaEnv {
     terminal: Vec<bool>,
     /// When set, each episode is recorded at the control rate (see [`MetaEnv::record_episodes`]).
     record: Option<(RecordOptions, Recorder)>,
+    /// The decision in progress (between [`MetaEnv::begin_decision`] and
+    /// [`MetaEnv::end_decision`]).
+    decision: Decision,
 }
+
+/// The decision in progress: its skill and how its control ticks went.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct Decision {
+    option: usize,
+    /// Control ticks run.
+    ran: usize,
+    fell: bool,
+    /// The task failed (its own test, e.g. a dropped box).
+    failed: bool,
+    /// The character touched the chair while a non-terminal skill played (touch penalty).
+    bumped: bool,
+    /// Whether bumps are watched in this decision.
+    watch_bumps: bool,
+}
+
+/// How many values [`MetaEnv::decision_snapshot`] writes.
+pub const DECISION_VALUES: usize = 6;
 
 /// Names of the terms a recorded sitting episode carries per control tick (other tasks: see
 /// [`TaskSpec::recorded_terms`]).
@@ -481,6 +502,7 @@ impl MetaEnv {
             touched: None,
             terminal: crate::planner::terminal_skills(&setup),
             record: None,
+            decision: Decision::default(),
             setup,
         }
     }
@@ -629,13 +651,19 @@ impl MetaEnv {
         }
     }
 
-    /// One control tick of skill `c`.
-    fn tick(&mut self, c: usize) {
-        let width = self.setup.skills[c].policy.obs_dim();
-        let mut obs = std::mem::take(&mut self.skill_obs);
-        self.skill_observation(c, &mut obs[..width]);
-        self.policies[c].act(&obs[..width], &mut self.skill_act);
-        self.skill_obs = obs;
+    /// One control tick of skill `c`: its frozen policy acts, or `external` (normalised
+    /// actions, its policy's width) does in its place.
+    fn tick(&mut self, c: usize, external: Option<&[f32]>) {
+        match external {
+            Some(a) => self.skill_act.copy_from_slice(a),
+            None => {
+                let width = self.setup.skills[c].policy.obs_dim();
+                let mut obs = std::mem::take(&mut self.skill_obs);
+                self.skill_observation(c, &mut obs[..width]);
+                self.policies[c].act(&obs[..width], &mut self.skill_act);
+                self.skill_obs = obs;
+            }
+        }
         let skill = &self.setup.skills[c];
         self.map.targets(&self.skill_act, &mut self.targets);
         self.world.set_grip(skill.grip);
@@ -643,6 +671,156 @@ impl MetaEnv {
         // through the fall test below.
         let _ = self.world.step(&self.targets);
         self.phase = skill.advance(self.phase);
+    }
+
+    /// The current skill's clip phase (its reference frame at the control rate).
+    pub fn phase(&self) -> usize {
+        self.phase
+    }
+
+    /// The walking target (world x, y) the current decision gave a target-taking skill.
+    pub fn target(&self) -> [f64; 2] {
+        self.target
+    }
+
+    /// Starts a decision on the meta action `action` (option, then the 2-D target): the option
+    /// is masked by the graph and the guards (a forbidden one keeps the current skill), a
+    /// switch picks the new skill's clip up at its entry frame, and a target-taking skill gets
+    /// this decision's target. Returns the option that plays. [`Env::step`] is this, then
+    /// [`MetaEnv::decision_tick`] until it says the decision is over, then
+    /// [`MetaEnv::end_decision`]; a caller may drive the ticks itself (a skill fine-tuned in
+    /// the controller's episodes, [`crate::refine`]).
+    pub fn begin_decision(&mut self, action: &[f32]) -> usize {
+        let k = self.setup.skills.len();
+        let option = (action[0].round().max(0.0) as usize).min(k - 1);
+        let mut mask = vec![false; k];
+        self.allowed_now(&mut mask);
+        // The policy masks forbidden options; a forbidden choice from elsewhere keeps the
+        // current skill (or takes the first allowed one at the start).
+        let option = if mask[option] {
+            option
+        } else {
+            self.current.unwrap_or_else(|| mask.iter().position(|&m| m).unwrap_or(0))
+        };
+        if self.current == Some(option) && self.setup.skills[option].ended(self.phase) {
+            self.phase = 0;
+            self.bind_props(option);
+        }
+        let switched = self.current != Some(option);
+        if switched {
+            self.world.joint_angles(&mut self.entry_q);
+            self.world.joint_velocities(&mut self.entry_v);
+            self.phase = self.setup.skills[option].entry_frame(&self.entry_q, &self.entry_v);
+            self.bind_props(option);
+            self.switches += u32::from(self.current.is_some());
+            self.current = Some(option);
+            self.chosen.push(option);
+        }
+        // A skill that takes a target (walk, stage 2) gets the one of this decision, in the
+        // pelvis' heading frame and the skill's training range: the meta-controller steers it
+        // every decision.
+        if switched || self.setup.skills[option].uses_target {
+            let p = self.world.pelvis_frame().pos;
+            let yaw = self.world.heading();
+            let [dx, dy] = self.setup.skills[option].target_offset([action[1], action[2]]);
+            self.target = [p[0] + yaw.cos() * dx - yaw.sin() * dy, p[1] + yaw.sin() * dx + yaw.cos() * dy];
+            if let Some((props, radius)) = &self.setup.detour {
+                let placements = self.world.placements();
+                let centres = props.iter().map(|&i| [placements[i].pos[0], placements[i].pos[1]]);
+                self.target = detour_target([p[0], p[1]], self.target, centres, *radius);
+            }
+        }
+        let watch_bumps = self.setup.task.touch_penalty() > 0.0 && !self.terminal[option];
+        self.decision = Decision { option, watch_bumps, ..Decision::default() };
+        option
+    }
+
+    /// One control tick of the decision's skill: its frozen policy acts, or `external` does
+    /// (normalised actions, the skill's action width). Returns whether the decision is over: a
+    /// fall, a task failure, success (tasks that end on it), the clip's end, or its ticks run.
+    pub fn decision_tick(&mut self, external: Option<&[f32]>) -> bool {
+        let option = self.decision.option;
+        self.tick(option, external);
+        self.decision.ran += 1;
+        let control_dt = 1.0 / self.setup.control_hz();
+        self.decision.failed = self.task.tick(&self.setup.task, &self.world, control_dt);
+        let d = &mut self.decision;
+        if (self.touched.is_none() || (d.watch_bumps && !d.bumped))
+            && self.world.contacts().character_on_prop(self.setup.task.frame_prop())
+        {
+            self.touched.get_or_insert(option);
+            d.bumped = d.watch_bumps;
+        }
+        self.record_frame();
+        if self.world.has_fallen() || !self.world.root_height().is_finite() {
+            self.decision.fell = true;
+            return true;
+        }
+        self.decision.failed
+            || (self.setup.task.ends_on_success() && self.task.succeeded())
+            || self.setup.skills[option].ended(self.phase)
+            || self.decision.ran >= self.setup.ticks
+    }
+
+    /// Ends the decision: its reward, whether the episode ended (success, a fall, a failure)
+    /// or ran out of time, the episode's figures when it did, and the next meta observation
+    /// into `obs`.
+    pub fn end_decision(&mut self, obs: &mut [f32]) -> StepOutcome {
+        let Decision { ran, fell, failed, bumped, .. } = self.decision;
+        let control_dt = 1.0 / self.setup.control_hz();
+        self.decisions += 1;
+        let dt = ran as f64 * control_dt;
+        let reward = self.task.decision_reward(&self.setup.task, &self.world, fell, bumped, dt);
+        let success = self.task.succeeded();
+        // Decisions can end early (a clip's end), so the limit is in simulated time, with a
+        // decision count as a backstop.
+        let out_of_time =
+            self.world.time() >= self.setup.time_limit_s - 1e-9 || self.decisions >= 4 * self.setup.max_decisions;
+        let ended = (self.setup.task.ends_on_success() && success) || fell || failed;
+        let truncated = !ended && out_of_time;
+        let done = ended || truncated;
+        let mut terms = [0.0; MAX_TERMS];
+        if done {
+            terms[0] = f32::from(u8::from(success));
+            terms[2] = f32::from(u8::from(fell));
+            terms[3] = self.world.time() as f32;
+            terms[4] = self.switches as f32;
+            self.task.terms(&mut terms);
+        }
+        self.observe(obs);
+        if obs.iter().any(|v| !v.is_finite()) {
+            obs.fill(0.0);
+            return StepOutcome { reward: 0.0, terminated: true, truncated: false, terms };
+        }
+        StepOutcome { reward, terminated: ended, truncated, terms }
+    }
+
+    /// The decision in progress as [`DECISION_VALUES`] numbers (with [`Env::snapshot`], the
+    /// state mid-decision).
+    pub fn decision_snapshot(&self) -> [f64; DECISION_VALUES] {
+        let d = &self.decision;
+        let b = |v: bool| f64::from(u8::from(v));
+        [d.option as f64, d.ran as f64, b(d.fell), b(d.failed), b(d.bumped), b(d.watch_bumps)]
+    }
+
+    /// Restores [`MetaEnv::decision_snapshot`]; `Err` names a skill out of range.
+    pub fn restore_decision(&mut self, s: &[f64]) -> std::result::Result<(), String> {
+        let skills = self.setup.skills.len();
+        if s.len() != DECISION_VALUES {
+            return Err(format!("decision snapshot has {} values, expected {DECISION_VALUES}", s.len()));
+        }
+        if !(s[0] >= 0.0 && s[0].fract() == 0.0 && (s[0] as usize) < skills && s[1] >= 0.0) {
+            return Err(format!("decision snapshot's skill is {}, not one of the {skills} skills", s[0]));
+        }
+        self.decision = Decision {
+            option: s[0] as usize,
+            ran: s[1] as usize,
+            fell: s[2] != 0.0,
+            failed: s[3] != 0.0,
+            bumped: s[4] != 0.0,
+            watch_bumps: s[5] != 0.0,
+        };
+        Ok(())
     }
 }
 
@@ -731,97 +909,9 @@ impl Env for MetaEnv {
     }
 
     fn step(&mut self, action: &[f32], obs: &mut [f32]) -> StepOutcome {
-        let k = self.setup.skills.len();
-        let option = (action[0].round().max(0.0) as usize).min(k - 1);
-        let mut mask = vec![false; k];
-        self.allowed_now(&mut mask);
-        // The policy masks forbidden options; a forbidden choice from elsewhere keeps the
-        // current skill (or takes the first allowed one at the start).
-        let option = if mask[option] {
-            option
-        } else {
-            self.current.unwrap_or_else(|| mask.iter().position(|&m| m).unwrap_or(0))
-        };
-        let clip_over = |env: &Self, c: usize| env.setup.skills[c].ended(env.phase);
-        if self.current == Some(option) && clip_over(self, option) {
-            self.phase = 0;
-            self.bind_props(option);
-        }
-        let switched = self.current != Some(option);
-        if switched {
-            self.world.joint_angles(&mut self.entry_q);
-            self.world.joint_velocities(&mut self.entry_v);
-            self.phase = self.setup.skills[option].entry_frame(&self.entry_q, &self.entry_v);
-            self.bind_props(option);
-            self.switches += u32::from(self.current.is_some());
-            self.current = Some(option);
-            self.chosen.push(option);
-        }
-        // A skill that takes a target (walk, stage 2) gets the one of this decision, in the
-        // pelvis' heading frame and the skill's training range: the meta-controller steers it
-        // every decision.
-        if switched || self.setup.skills[option].uses_target {
-            let p = self.world.pelvis_frame().pos;
-            let yaw = self.world.heading();
-            let [dx, dy] = self.setup.skills[option].target_offset([action[1], action[2]]);
-            self.target = [p[0] + yaw.cos() * dx - yaw.sin() * dy, p[1] + yaw.sin() * dx + yaw.cos() * dy];
-            if let Some((props, radius)) = &self.setup.detour {
-                let placements = self.world.placements();
-                let centres = props.iter().map(|&i| [placements[i].pos[0], placements[i].pos[1]]);
-                self.target = detour_target([p[0], p[1]], self.target, centres, *radius);
-            }
-        }
-        let mut fell = false;
-        let mut failed = false;
-        let mut ran = 0usize;
-        let control_dt = 1.0 / self.setup.control_hz();
-        let ends_on_success = self.setup.task.ends_on_success();
-        let watch_bumps = self.setup.task.touch_penalty() > 0.0 && !self.terminal[option];
-        let mut bumped = false;
-        for _ in 0..self.setup.ticks {
-            self.tick(option);
-            ran += 1;
-            failed = self.task.tick(&self.setup.task, &self.world, control_dt);
-            if (self.touched.is_none() || (watch_bumps && !bumped))
-                && self.world.contacts().character_on_prop(self.setup.task.frame_prop())
-            {
-                self.touched.get_or_insert(option);
-                bumped = watch_bumps;
-            }
-            self.record_frame();
-            if self.world.has_fallen() || !self.world.root_height().is_finite() {
-                fell = true;
-                break;
-            }
-            if failed || (ends_on_success && self.task.succeeded()) || clip_over(self, option) {
-                break;
-            }
-        }
-        self.decisions += 1;
-        let dt = ran as f64 * control_dt;
-        let reward = self.task.decision_reward(&self.setup.task, &self.world, fell, bumped, dt);
-        let success = self.task.succeeded();
-        // Decisions can end early (a clip's end), so the limit is in simulated time, with a
-        // decision count as a backstop.
-        let out_of_time =
-            self.world.time() >= self.setup.time_limit_s - 1e-9 || self.decisions >= 4 * self.setup.max_decisions;
-        let ended = (ends_on_success && success) || fell || failed;
-        let truncated = !ended && out_of_time;
-        let done = ended || truncated;
-        let mut terms = [0.0; MAX_TERMS];
-        if done {
-            terms[0] = f32::from(u8::from(success));
-            terms[2] = f32::from(u8::from(fell));
-            terms[3] = self.world.time() as f32;
-            terms[4] = self.switches as f32;
-            self.task.terms(&mut terms);
-        }
-        self.observe(obs);
-        if obs.iter().any(|v| !v.is_finite()) {
-            obs.fill(0.0);
-            return StepOutcome { reward: 0.0, terminated: true, truncated: false, terms };
-        }
-        StepOutcome { reward, terminated: ended, truncated, terms }
+        self.begin_decision(action);
+        while !self.decision_tick(None) {}
+        self.end_decision(obs)
     }
 
     /// The world's state, then the episode's [`EPISODE_VALUES`] (the current skill, its phase,

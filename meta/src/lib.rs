@@ -13,6 +13,7 @@ pub mod judge;
 pub mod latent;
 pub mod planner;
 pub mod readiness;
+pub mod refine;
 pub mod task;
 pub mod task_eval;
 pub mod toss;

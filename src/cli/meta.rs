@@ -7,6 +7,7 @@ use std::sync::Arc;
 use anyhow::{Context, Result, bail};
 use clap::Subcommand;
 use repertoire_learn::classify::ClassifierConfig;
+use repertoire_learn::env::Env as _;
 use repertoire_learn::ppo::IterationMetrics;
 use repertoire_meta::deliver::{DeliveryWindow, deliver};
 use repertoire_meta::distill::{DistillOptions, distill};
@@ -14,6 +15,7 @@ use repertoire_meta::eval::{Controller, evaluate, save_worst};
 use repertoire_meta::latent::{self, LatentSetup};
 use repertoire_meta::planner::PlannerConfig;
 use repertoire_meta::readiness::{Gate, Readiness, ReadinessOptions, learn};
+use repertoire_meta::refine::RefineSetup;
 use repertoire_meta::task_eval::{StartGrid, evaluate_toss, evaluate_warehouse, save_worst_toss, save_worst_warehouse};
 use repertoire_meta::train::{CHECKPOINT_EVERY, MetaTrainOptions, default_ppo, load, train};
 use repertoire_meta::{Advance, MetaSetup, SkillGraph, TaskSpec};
@@ -281,6 +283,32 @@ pub enum MetaCommand {
         /// the window, as a pool (default: <out> with `-handovers` before `.ron`).
         #[arg(long)]
         handovers_out: Option<PathBuf>,
+    },
+    /// Fine-tune one skill inside a trained controller's episodes (sitting and the other
+    /// tasks): the frozen controller decides as in evaluation, the other skills play frozen,
+    /// and the skill learns wherever the controller chooses it, from the states and towards the
+    /// targets it meets there, on its own reward (its spec's imitation and goal) plus
+    /// --task-weight times the task's; a fall, its own or a later skill's, ends the episode.
+    /// Starts from the library's skill and its critic and writes it back into --library
+    /// (`skill train`'s options). The controller then needs re-pinning to the new weights:
+    /// `meta train --library LIB --warm-start CTRL --iterations 0 --out NEW`.
+    Refine {
+        /// Scenario RON file (default: the built-in scenes/sit.ron).
+        file: Option<PathBuf>,
+        /// The skill's spec (its reward, actions and training settings).
+        #[arg(long)]
+        spec: PathBuf,
+        /// The controller (default: as `meta train` writes it, in --library).
+        #[arg(long)]
+        meta: Option<PathBuf>,
+        /// Weight of the task's decision rewards (approach, seated time) in the learner's.
+        #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
+        task_weight: f32,
+        /// Weight of the skill's own reward (its spec's imitation and goal) in the learner's.
+        #[arg(long, default_value_t = 1.0, allow_hyphen_values = true, value_parser = crate::cli::non_negative)]
+        skill_weight: f32,
+        #[command(flatten)]
+        common: super::skill::TrainArgs,
     },
     /// Evaluate a trained meta-controller. Sitting: success and minimum distance per zone,
     /// transition matrices. Warehouse: phases completed per episode by start phase and a pick-up
@@ -632,6 +660,43 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
                 spec.display(),
                 out.display(),
                 handovers_out.display()
+            );
+            Ok(())
+        }
+        MetaCommand::Refine { file, spec, meta, task_weight, skill_weight, common } => {
+            let (skill, opts) = super::skill::prepare(&spec, None, Some(None), common, command)?;
+            let setup = setup(file.as_ref(), &opts.library, &[], &[])?;
+            let meta = meta.unwrap_or_else(|| setup_meta(&opts.library, &setup));
+            let (_, head) = load(&meta, &setup)?;
+            let name = skill.spec.spec.name.clone();
+            let probe_env = skill.env();
+            let refine = Arc::new(RefineSetup::new(
+                Arc::clone(&setup),
+                head,
+                &name,
+                Arc::clone(&skill.settings),
+                probe_env.action_bounds(),
+                (skill_weight, task_weight),
+            )?);
+            let chosen = refine.probe(16, opts.seed.unwrap_or(1))?;
+            tracing::info!(skill = %name, controller = %meta.display(), chosen, of = 16, "refining in the controller's episodes");
+            let out = repertoire_skill::train::train_in(&skill, &opts, &|n| refine.envs(n))
+                .with_context(|| format!("refining {} under {}", spec.display(), meta.display()))?;
+            super::skill::print_outcome(&skill, &out);
+            if let Some(last) = out.history.last() {
+                let term = |n: &str| last.terms.iter().find(|(k, _)| k == n).map_or(f32::NAN, |(_, v)| *v);
+                println!(
+                    "last iteration: {} episodes, success {:.1}%, `{name}` fell in {:.1}%, task reward {:.2} per episode",
+                    last.episodes,
+                    100.0 * term("success"),
+                    100.0 * term("skill_fell"),
+                    term("task_reward")
+                );
+            }
+            println!(
+                "re-pin the controller to it: repertoire meta train --library {} --warm-start {} --iterations 0 --out NEW",
+                opts.library.display(),
+                meta.display()
             );
             Ok(())
         }

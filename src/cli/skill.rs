@@ -8,7 +8,7 @@ use clap::{Args, Subcommand, ValueEnum};
 use repertoire_skill::eval::{StartFrom, evaluate, pool_of};
 use repertoire_skill::library;
 use repertoire_skill::spec::Init;
-use repertoire_skill::train::{TrainOptions, default_run_dir, train};
+use repertoire_skill::train::{TrainOptions, TrainOutcome, default_run_dir, train};
 use repertoire_skill::{SkillSetup, SpecFile};
 
 /// Where trained skills go unless `--library` says otherwise (committed with the repository).
@@ -120,7 +120,7 @@ pub enum PoolFrom {
     Predecessors,
 }
 
-/// Options shared by `train` and `finetune`.
+/// Options shared by `train` and `finetune` (and `meta refine`).
 #[derive(Debug, Args)]
 pub struct TrainArgs {
     /// Skill library folder.
@@ -140,6 +140,10 @@ pub struct TrainArgs {
     /// steering) explores more than the converged stage before it did.
     #[arg(long, allow_hyphen_values = true)]
     explore_log_std: Option<f32>,
+    /// Starting from a library skill, lower its policy's log standard deviation to at most
+    /// this (per action dimension): less exploration noise than it converged to.
+    #[arg(long, allow_hyphen_values = true)]
+    max_log_std: Option<f32>,
     /// Starting from the library's skill of the spec's own name (`finetune`, `--warm-start`),
     /// train a fresh value network instead of continuing the critic saved with its policy.
     #[arg(long)]
@@ -201,8 +205,25 @@ fn train_cmd(
     a: TrainArgs,
     command: String,
 ) -> Result<()> {
+    let (setup, opts) = prepare(spec_path, finetune, prior, a, command)?;
+    let out = train(&setup, &opts).with_context(|| format!("training {}", spec_path.display()))?;
+    print_outcome(&setup, &out);
+    Ok(())
+}
+
+/// The skill setup and training options of `train_cmd`'s arguments (see there).
+pub fn prepare(
+    spec_path: &Path,
+    finetune: Option<(Vec<String>, f64, (f64, f64))>,
+    prior: Option<Option<String>>,
+    a: TrainArgs,
+    command: String,
+) -> Result<(SkillSetup, TrainOptions)> {
     if a.fresh_critic && prior.is_none() {
         bail!("--fresh-critic concerns a library skill's critic: use it with --warm-start or finetune");
+    }
+    if a.max_log_std.is_some() && prior.is_none() {
+        bail!("--max-log-std lowers a library skill's spread: use it with --warm-start, --warm-start-from or finetune");
     }
     if a.explore_log_std.is_some() && prior.is_none() {
         bail!(
@@ -241,13 +262,19 @@ fn train_cmd(
         init_from_library: prior.is_some(),
         prior_skill: prior.flatten(),
         explore_log_std: a.explore_log_std,
+        max_log_std: a.max_log_std,
         fresh_critic: a.fresh_critic,
         checkpoint_every: a.checkpoint_every,
         serial: a.serial,
         progress: true,
         command,
     };
-    let out = train(&setup, &opts).with_context(|| format!("training {}", spec_path.display()))?;
+    Ok((setup, opts))
+}
+
+/// The table of a finished training run and where it went.
+pub fn print_outcome(setup: &SkillSetup, out: &TrainOutcome) {
+    let s = &setup.spec.spec;
     let f = &out.figures;
     println!("| skill | iterations | samples | minutes | mean return | mean length (steps) | falls |");
     println!("|---|---:|---:|---:|---:|---:|---:|");
@@ -262,7 +289,6 @@ fn train_cmd(
         100.0 * f.termination_rate
     );
     println!("skill written to {}; run in {}", out.skill_dir.display(), out.run_dir.display());
-    Ok(())
 }
 
 #[allow(clippy::too_many_arguments)]

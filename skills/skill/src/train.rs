@@ -7,12 +7,13 @@ use std::time::Instant;
 use indicatif::{ProgressBar, ProgressStyle};
 use repertoire_learn::acting::{ActingCritic, ActingPolicy};
 use repertoire_learn::checkpoint;
+use repertoire_learn::env::Env;
 use repertoire_learn::ppo::{IterationMetrics, Ppo};
 use repertoire_learn::run_dir::{RunDir, git_hash};
 
 use crate::error::{Result, SkillError};
 use crate::library::{self, LIBRARY_FORMAT, LibrarySkill, SkillManifest, Stage, TrainingFigures};
-use crate::skill::{SkillEnv, SkillSetup};
+use crate::skill::SkillSetup;
 
 /// Options of one training run.
 #[derive(Debug, Clone)]
@@ -38,6 +39,10 @@ pub struct TrainOptions {
     /// With `init_from_library`, raise the prior policy's log standard deviation to at least
     /// this per action dimension (more exploration for a stage that learns something new).
     pub explore_log_std: Option<f32>,
+    /// With `init_from_library`, lower the prior policy's log standard deviation to at most
+    /// this per action dimension (less noise in what it meets: a skill refined in a
+    /// controller's episodes, which evaluation plays by the mean).
+    pub max_log_std: Option<f32>,
     /// With `init_from_library` and the same skill, start the value network afresh instead of
     /// from the critic saved with the policy.
     pub fresh_critic: bool,
@@ -67,6 +72,7 @@ impl TrainOptions {
             init_from_library: false,
             prior_skill: None,
             explore_log_std: None,
+            max_log_std: None,
             fresh_critic: false,
             checkpoint_every: 0,
             serial: false,
@@ -91,7 +97,11 @@ pub struct TrainOutcome {
 
 /// The PPO state to train from and, for a fine-tune, the lineage the result inherits (the
 /// prior's stages and the prior itself).
-fn ppo_for(setup: &SkillSetup, opts: &TrainOptions) -> Result<(Ppo<SkillEnv>, Vec<Stage>)> {
+fn ppo_for<E: Env>(
+    setup: &SkillSetup,
+    opts: &TrainOptions,
+    make: &dyn Fn(usize) -> Vec<E>,
+) -> Result<(Ppo<E>, Vec<Stage>)> {
     let mut cfg = setup.spec.spec.ppo.clone();
     if let Some(n) = opts.envs {
         cfg.num_envs = n;
@@ -126,14 +136,17 @@ fn ppo_for(setup: &SkillSetup, opts: &TrainOptions) -> Result<(Ppo<SkillEnv>, Ve
         None
     };
     if let Some(stem) = &opts.resume {
-        return Ok((checkpoint::load(stem, setup.envs(cfg.num_envs))?, lineage));
+        return Ok((checkpoint::load(stem, make(cfg.num_envs))?, lineage));
     }
     let n = cfg.num_envs;
-    let mut ppo = Ppo::new(cfg, setup.envs(n));
+    let mut ppo = Ppo::new(cfg, make(n));
     if let Some(prior) = prior {
         let mut policy = grown_prior(setup, &prior, ppo.obs_rms.dim())?;
         if let Some(floor) = opts.explore_log_std {
             policy.log_std.iter_mut().for_each(|l| *l = l.max(floor));
+        }
+        if let Some(ceiling) = opts.max_log_std {
+            policy.log_std.iter_mut().for_each(|l| *l = l.min(ceiling));
         }
         policy.load_into(&mut ppo).map_err(|m| SkillError::Mismatch {
             path: prior.dir.join("policy.safetensors"),
@@ -232,7 +245,18 @@ fn critic_mismatch(setup: &SkillSetup, prior: &LibrarySkill, why: String) -> Ski
 
 /// Trains (or fine-tunes) the skill of `setup` and writes it to the library.
 pub fn train(setup: &SkillSetup, opts: &TrainOptions) -> Result<TrainOutcome> {
-    let (mut ppo, lineage) = ppo_for(setup, opts)?;
+    train_in(setup, opts, &|n| setup.envs(n))
+}
+
+/// [`train`] in other environments than the skill's own, `make(n)` of them: the same skill
+/// (its observations and actions, its library entry) trained where something else decides
+/// when it plays (`repertoire meta refine`: in a meta-controller's episodes).
+pub fn train_in<E: Env>(
+    setup: &SkillSetup,
+    opts: &TrainOptions,
+    make: &dyn Fn(usize) -> Vec<E>,
+) -> Result<TrainOutcome> {
+    let (mut ppo, lineage) = ppo_for(setup, opts, make)?;
     let total = ppo.cfg.num_iterations;
     let start_iter = ppo.iteration;
     let run = match opts.resume {

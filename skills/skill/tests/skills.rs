@@ -804,6 +804,20 @@ fn a_skill_grown_from_another_acts_as_it_until_trained_and_keeps_its_lineage() {
     );
     let lineage: Vec<&str> = grown.manifest.lineage.iter().map(|s| s.command.as_str()).collect();
     assert_eq!(lineage, [prior.manifest.command.as_str()], "carry's lineage starts with walk");
+    // `--max-log-std` lowers it to a ceiling instead.
+    let ceiling = -4.0;
+    assert!(prior.policy.log_std.iter().all(|&l| l > ceiling + 0.5), "{:?}", prior.policy.log_std);
+    let opts = TrainOptions {
+        max_log_std: Some(ceiling),
+        ..TrainOptions { run_dir: lib.join("run-carry-quiet"), explore_log_std: None, ..opts }
+    };
+    train(&carry, &opts).expect("train carry from walk, quieter");
+    let quiet = library::load(&lib, "carry").expect("carry in the library");
+    assert!(
+        quiet.policy.log_std.iter().all(|&l| (l - ceiling).abs() < 0.05),
+        "one iteration from the ceiling: {:?}",
+        quiet.policy.log_std
+    );
 
     // A skill whose features do not begin with the prior's is refused, naming both.
     let sit = setup("sit.ron", &lib);
