@@ -160,7 +160,8 @@ pub struct TrainArgs {
     /// Seed (default: the spec's).
     #[arg(long)]
     seed: Option<u64>,
-    /// Resume from a checkpoint stem (…/checkpoints/iter-000100).
+    /// Resume from a checkpoint stem (…/checkpoints/iter-000100); --iterations more than the run
+    /// had extends it (the learning rate then anneals to the new total).
     #[arg(long)]
     resume: Option<PathBuf>,
     /// Write a checkpoint every N iterations.

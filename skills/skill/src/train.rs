@@ -28,7 +28,8 @@ pub struct TrainOptions {
     pub envs: Option<usize>,
     /// Override of the spec's seed.
     pub seed: Option<u64>,
-    /// Continue from this checkpoint stem (`.../checkpoints/iter-000100`).
+    /// Continue from this checkpoint stem (`.../checkpoints/iter-000100`); with `iterations`,
+    /// up to that many in all (more than the run had extends it).
     pub resume: Option<PathBuf>,
     /// Start from the library's policy of this skill (transition fine-tuning).
     pub init_from_library: bool,
@@ -136,7 +137,20 @@ fn ppo_for<E: Env>(
         None
     };
     if let Some(stem) = &opts.resume {
-        return Ok((checkpoint::load(stem, make(cfg.num_envs))?, lineage));
+        let mut ppo = checkpoint::load(stem, make(cfg.num_envs))?;
+        // More iterations than the run had extend it (the learning rate then anneals to the
+        // new total), as `meta train --resume` does.
+        if let Some(n) = opts.iterations {
+            if ppo.iteration > n {
+                return Err(SkillError::Invalid(format!(
+                    "{}: already {} iterations in; ask for at least that many (--iterations)",
+                    stem.display(),
+                    ppo.iteration
+                )));
+            }
+            ppo.cfg.num_iterations = n.max(1);
+        }
+        return Ok((ppo, lineage));
     }
     let n = cfg.num_envs;
     let mut ppo = Ppo::new(cfg, make(n));

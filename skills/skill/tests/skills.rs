@@ -247,6 +247,17 @@ fn a_training_run_resumed_from_its_checkpoint_ends_where_the_uninterrupted_run_e
     assert!(policy(&resumed) == policy(&straight), "the resumed run's policy differs from the uninterrupted run's");
     let rows = std::fs::read_to_string(resumed.join("run/metrics.csv")).unwrap();
     assert_eq!(rows.lines().skip(1).map(|l| l.split(',').next().unwrap()).collect::<Vec<_>>(), ["3", "4"]);
+    // Asking for more iterations than the run had extends it; fewer than it has run is refused.
+    let extended = temp("extended");
+    let last = straight.join("run/checkpoints/iter-000004");
+    let more = |n| TrainOptions {
+        resume: Some(last.clone()),
+        ..TrainOptions::quick(&extended, &extended.join("run"), n, 2, 5)
+    };
+    let err = train(&setup("turn_left.ron", &extended), &more(3)).expect_err("3 < 4 run").to_string();
+    assert!(err.contains("already 4 iterations"), "{err}");
+    let out = train(&setup("turn_left.ron", &extended), &more(5)).expect("extend to 5");
+    assert_eq!((out.history.len(), out.figures.iterations), (1, 5), "iteration 5 only");
 }
 
 #[test]
