@@ -210,7 +210,7 @@ impl RefineEnv {
     }
 
     /// The learner's ending of an episode that ended with `out`.
-    fn ending(&self, out: &StepOutcome, reward: f32, terms: &mut [f32; MAX_TERMS]) -> StepOutcome {
+    fn ending(out: &StepOutcome, reward: f32, terms: &mut [f32; MAX_TERMS]) -> StepOutcome {
         let success = out.terms[0] > 0.5;
         terms[6] = if success { 1.0 } else { 0.0 };
         let terminated = out.terminated && !success;
@@ -291,7 +291,7 @@ impl Env for RefineEnv {
         if obs.iter().any(|v| !v.is_finite()) {
             obs.fill(0.0);
         }
-        self.ending(&out, reward, &mut terms)
+        Self::ending(&out, reward, &mut terms)
     }
 
     /// The meta environment's snapshot, its decision in progress, then the skill reward's state.

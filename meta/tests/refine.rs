@@ -13,6 +13,7 @@ use repertoire_meta::refine::{REFINE_TERMS, RefineEnv, RefineSetup};
 use repertoire_meta::train::load;
 use repertoire_meta::{MetaEnv, MetaSetup, SkillGraph};
 use repertoire_scenes::{ScenarioFile, WorldModel};
+use repertoire_skill::imitation::TaskSettings;
 use repertoire_skill::train::{TrainOptions, train_in};
 use repertoire_skill::{SkillSetup, SpecFile, library};
 
@@ -175,48 +176,21 @@ fn a_skill_outside_the_graph_a_spec_of_another_clip_or_a_prop_goal_is_refused() 
     let (_, head) = load(&lib.join("meta"), &meta).expect("controller");
     let walk = skill("walk_to.ron", &lib);
     let env = walk.env();
-    let err = RefineSetup::new(
-        Arc::clone(&meta),
-        head.clone(),
-        "catch",
-        Arc::clone(&walk.settings),
-        env.action_bounds(),
-        (1.0, 1.0),
-    )
-    .err()
-    .expect("catch is not in the sitting graph")
-    .to_string();
+    let refused = |name: &str, settings: &Arc<TaskSettings>, weights: (f32, f32), why: &str| {
+        RefineSetup::new(Arc::clone(&meta), head.clone(), name, Arc::clone(settings), env.action_bounds(), weights)
+            .err()
+            .expect(why)
+            .to_string()
+    };
+    let err = refused("catch", &walk.settings, (1.0, 1.0), "catch is not in the sitting graph");
     assert!(err.contains("no skill `catch`") && err.contains("walk_to"), "{err}");
     let stand = skill("stand.ron", &lib);
-    let err = RefineSetup::new(
-        Arc::clone(&meta),
-        head.clone(),
-        "walk_to",
-        Arc::clone(&stand.settings),
-        env.action_bounds(),
-        (1.0, 1.0),
-    )
-    .err()
-    .expect("the stand's clip is not walk_to's")
-    .to_string();
+    let err = refused("walk_to", &stand.settings, (1.0, 1.0), "the stand's clip is not walk_to's");
     assert!(err.contains("frames"), "{err}");
     let sit = skill("sit.ron", &lib);
-    let err = RefineSetup::new(
-        Arc::clone(&meta),
-        head.clone(),
-        "sit",
-        Arc::clone(&sit.settings),
-        env.action_bounds(),
-        (1.0, 1.0),
-    )
-    .err()
-    .expect("the sit's seat goal reads a prop of its own scene")
-    .to_string();
+    let err = refused("sit", &sit.settings, (1.0, 1.0), "the sit's seat goal reads a prop of its own scene");
     assert!(err.contains("`sit`") && err.contains("not supported"), "{err}");
-    let err = RefineSetup::new(meta, head, "walk_to", Arc::clone(&walk.settings), env.action_bounds(), (1.0, f32::NAN))
-        .err()
-        .expect("a NaN weight")
-        .to_string();
+    let err = refused("walk_to", &walk.settings, (1.0, f32::NAN), "a NaN weight");
     assert!(err.contains("task weight"), "{err}");
 }
 
