@@ -10,6 +10,8 @@
 //! `repertoire skill finetune sit.ron --from FILE.ron` starts sit episodes from it with the chair
 //! where the controller left it. The states at which the controller did switch to the skill are
 //! kept apart too ([`Delivery::handover_pool`]), window or not: where the skill is really started.
+//! A skill without a seat goal (the stand before the sit) has no window: every decision before
+//! it is kept, each with the seat's pose, which its spec's `delivered_seat` puts the chair at.
 
 use std::sync::Arc;
 
@@ -57,7 +59,7 @@ pub struct Delivery {
     pub handover_pool: Pool,
     /// Decisions seen with the skill not running.
     pub decisions: usize,
-    /// Of those, decisions whose seat lay in the window.
+    /// Of those, decisions whose seat lay in the window (all of them without a window).
     pub in_window: usize,
     /// Decisions at which the controller did switch to the skill.
     pub handovers: usize,
@@ -73,7 +75,8 @@ pub struct Delivery {
 
 /// Plays `trials` seeded episodes per zone of `zones` with `controller` and records the states
 /// at which it could hand the character to `skill` (see the module docs), keeping at most
-/// `max_states`. Sitting scenarios only.
+/// `max_states`. Sitting scenarios only. `window: None` (a skill without a seat goal) keeps
+/// every decision state.
 #[allow(clippy::too_many_arguments)]
 pub fn deliver<'c>(
     setup: &Arc<MetaSetup>,
@@ -82,7 +85,7 @@ pub fn deliver<'c>(
     zones: &[String],
     trials: usize,
     seed: u64,
-    window: DeliveryWindow,
+    window: Option<DeliveryWindow>,
     max_states: usize,
 ) -> Result<Delivery> {
     let TaskSpec::Sit { seat, .. } = setup.task else {
@@ -127,7 +130,7 @@ pub fn deliver<'c>(
                     if before {
                         c.decisions += 1;
                         let state = PoolState::capture_with_seat(env.world(), &env.world().placements()[seat]);
-                        let inside = state.seat.is_some_and(|s| window.contains(s));
+                        let inside = window.is_none_or(|w| state.seat.is_some_and(|s| w.contains(s)));
                         here = Some((state, inside));
                     }
                     ctl.act(&env, &obs, &mut mask, &mut act);

@@ -429,7 +429,7 @@ fn deliveries_record_the_seat_where_the_controller_hands_over_within_the_window(
     let planner = Controller::Planner(PlannerConfig { horizon: 2, repeats: 0 });
     let zones = ["front".to_string(), "sides".to_string()];
     let window = |max_offset_m, max_turn_deg| DeliveryWindow { expected: [-0.4, 0.0, 0.0], max_offset_m, max_turn_deg };
-    let all = deliver(&s, planner, "sit", &zones, 2, 3, window(100.0, 180.0), 1000).expect("deliver");
+    let all = deliver(&s, planner, "sit", &zones, 2, 3, Some(window(100.0, 180.0)), 1000).expect("deliver");
     assert_eq!(all.episodes, 4);
     assert!(all.decisions >= 4, "at least the first decision of each episode: {}", all.decisions);
     assert_eq!(all.in_window, all.decisions, "an unbounded window keeps every decision");
@@ -443,27 +443,31 @@ fn deliveries_record_the_seat_where_the_controller_hands_over_within_the_window(
     // The start states: standing 1.5 m or more from the chair, so the seat is well away.
     let far = all.pool.states.iter().filter(|st| st.seat.is_some_and(|p| p[0].hypot(p[1]) > 1.0)).count();
     assert!(far >= 4, "{far} states with the seat over 1 m away");
-    let again = deliver(&s, planner, "sit", &zones, 2, 3, window(100.0, 180.0), 1000).expect("again");
+    let again = deliver(&s, planner, "sit", &zones, 2, 3, Some(window(100.0, 180.0)), 1000).expect("again");
     assert_eq!(again.pool, all.pool, "reproducible for a seed");
+    // No window (a skill without a seat goal, the stand): every decision is kept, seat and all.
+    let open = deliver(&s, planner, "sit", &zones, 2, 3, None, 1000).expect("no window");
+    assert_eq!((open.in_window, open.handovers_in_window), (open.decisions, open.handovers));
+    assert_eq!(open.pool, all.pool, "no window keeps what an unbounded one does");
 
     // A window keeps exactly the states whose seat lies in it; the cap spreads what it keeps.
     let w = window(1.8, 90.0);
-    let some = deliver(&s, planner, "sit", &zones, 2, 3, w, 1000).expect("deliver");
+    let some = deliver(&s, planner, "sit", &zones, 2, 3, Some(w), 1000).expect("deliver");
     let inside = all.pool.states.iter().filter(|st| w.contains(st.seat.unwrap())).count();
     assert_eq!(some.in_window, inside);
     assert_eq!(some.handovers, all.handovers, "the window only filters what is kept");
     assert!(some.handovers_in_window <= some.handovers);
     assert!(some.pool.states.iter().all(|st| w.contains(st.seat.unwrap())));
-    let capped = deliver(&s, planner, "sit", &zones, 2, 3, window(100.0, 180.0), 3).expect("capped");
+    let capped = deliver(&s, planner, "sit", &zones, 2, 3, Some(window(100.0, 180.0)), 3).expect("capped");
     assert!(capped.pool.states.len() <= 3 && !capped.pool.states.is_empty());
     assert_eq!(capped.pool.states[0], all.pool.states[0]);
-    let none = deliver(&s, planner, "sit", &zones, 2, 3, window(0.0, 0.0), 1000).expect("deliver");
+    let none = deliver(&s, planner, "sit", &zones, 2, 3, Some(window(0.0, 0.0)), 1000).expect("deliver");
     assert_eq!(none.in_window, 0);
     assert_eq!(none.handover_pool, all.handover_pool, "handovers are kept whatever the window");
 
-    let err = deliver(&s, planner, "dance", &zones, 1, 3, w, 10).expect_err("unknown skill").to_string();
+    let err = deliver(&s, planner, "dance", &zones, 1, 3, Some(w), 10).expect_err("unknown skill").to_string();
     assert!(err.contains("`dance`") && err.contains("walk"), "{err}");
-    let err = deliver(&s, planner, "sit", &["nowhere".to_string()], 1, 3, w, 10).expect_err("zone").to_string();
+    let err = deliver(&s, planner, "sit", &["nowhere".to_string()], 1, 3, Some(w), 10).expect_err("zone").to_string();
     assert!(err.contains("nowhere"), "{err}");
 }
 

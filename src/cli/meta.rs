@@ -239,11 +239,13 @@ pub enum MetaCommand {
     /// every decision the skill is not running, the state with the seat's pose, kept when the
     /// seat lies within --max-offset / --max-turn of where the skill's clip expects it. The
     /// result is a pool: fine-tune the skill from it with `repertoire skill finetune SPEC
-    /// --from OUT.ron`, so it starts where the controller hands over, chair and all.
+    /// --from OUT.ron`, so it starts where the controller hands over, chair and all. A skill
+    /// without a seat goal (the stand before the sit) has no window: every decision before it
+    /// is kept, with the seat's pose, which its spec's `delivered_seat` puts the chair at.
     Deliver {
         /// Scenario RON file (default: the built-in scenes/sit.ron).
         file: Option<PathBuf>,
-        /// The skill's spec (its clip says where the seat is expected).
+        /// The skill's spec (for a sit, its clip says where the seat is expected).
         #[arg(long, default_value = "skills/skill/specs/sit.ron")]
         spec: PathBuf,
         /// Skill library.
@@ -590,15 +592,15 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
         } => {
             let skill = repertoire_skill::SkillSetup::new(repertoire_skill::spec::SpecFile::load(&spec)?, &library)?;
             let name = skill.spec.spec.name.clone();
-            let Some(expected) = skill.seat_at_start() else {
-                bail!("{}: skill `{name}` has no seat goal, so there is no seat to deliver it to", spec.display());
-            };
             if !(max_offset >= 0.0 && max_turn >= 0.0) {
                 bail!("--max-offset and --max-turn must be at least 0");
             }
+            // A skill without a seat goal (the stand) has no window: every decision is kept.
+            let expected = skill.seat_at_start();
             let setup = setup(file.as_ref(), &library, &[], &[])?;
             let zones = zones_or_all(zones, &setup.model.scenario.scenario);
-            let window = DeliveryWindow { expected, max_offset_m: max_offset, max_turn_deg: max_turn };
+            let window =
+                expected.map(|expected| DeliveryWindow { expected, max_offset_m: max_offset, max_turn_deg: max_turn });
             // Both output paths are settled before the episodes are played.
             let out = out.unwrap_or_else(|| PathBuf::from("runs").join(format!("delivered-{name}.ron")));
             let handovers_out = handovers_out.unwrap_or_else(|| {
@@ -627,29 +629,47 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
             };
             delivery.pool.save(&out)?;
             delivery.handover_pool.save(&handovers_out)?;
-            println!(
-                "{} episodes, {} decisions before `{name}`, {} with the seat within {max_offset} m / {max_turn}° of \
-                 where `{name}` expects it ({:+.2}, {:+.2} m, {:+.0}°); {} states written to {} in {:.1} s",
-                delivery.episodes,
-                delivery.decisions,
-                delivery.in_window,
-                expected[0],
-                expected[1],
-                expected[2].to_degrees(),
-                delivery.pool.states.len(),
-                out.display(),
-                started.elapsed().as_secs_f64()
-            );
-            println!(
-                "the controller switched to `{name}` {} times, {} of them ({:.1} %) with the seat in the window",
-                delivery.handovers,
-                delivery.handovers_in_window,
-                100.0 * delivery.handovers_in_window as f64 / delivery.handovers.max(1) as f64
-            );
-            println!(
-                "{} episodes succeeded, {} of them after a handover with the seat in the window",
-                delivery.successes, delivery.successes_in_window
-            );
+            match expected {
+                Some(expected) => println!(
+                    "{} episodes, {} decisions before `{name}`, {} with the seat within {max_offset} m / {max_turn}° of \
+                     where `{name}` expects it ({:+.2}, {:+.2} m, {:+.0}°); {} states written to {} in {:.1} s",
+                    delivery.episodes,
+                    delivery.decisions,
+                    delivery.in_window,
+                    expected[0],
+                    expected[1],
+                    expected[2].to_degrees(),
+                    delivery.pool.states.len(),
+                    out.display(),
+                    started.elapsed().as_secs_f64()
+                ),
+                None => println!(
+                    "{} episodes, {} decisions before `{name}` (it has no seat goal, so no window: every one is \
+                     kept, with the seat's pose); {} states written to {} in {:.1} s",
+                    delivery.episodes,
+                    delivery.decisions,
+                    delivery.pool.states.len(),
+                    out.display(),
+                    started.elapsed().as_secs_f64()
+                ),
+            }
+            if window.is_some() {
+                println!(
+                    "the controller switched to `{name}` {} times, {} of them ({:.1} %) with the seat in the window",
+                    delivery.handovers,
+                    delivery.handovers_in_window,
+                    100.0 * delivery.handovers_in_window as f64 / delivery.handovers.max(1) as f64
+                );
+                println!(
+                    "{} episodes succeeded, {} of them after a handover with the seat in the window",
+                    delivery.successes, delivery.successes_in_window
+                );
+            } else {
+                println!(
+                    "the controller switched to `{name}` {} times; {} episodes succeeded",
+                    delivery.handovers, delivery.successes
+                );
+            }
             println!(
                 "the {} states at the handovers, in the window or not, written to {}",
                 delivery.handover_pool.states.len(),

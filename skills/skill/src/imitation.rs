@@ -68,6 +68,9 @@ pub struct TaskSettings {
     pub grip: f64,
     /// The prop put in the way of the walking targets (its index and the spec's settings).
     pub obstacle: Option<(usize, Obstacle)>,
+    /// The spec's `delivered_seat`: the prop a delivered pool state's seat is put at, for a
+    /// skill without a seat goal.
+    pub delivered_seat: Option<usize>,
 }
 
 /// The imitation task of one environment.
@@ -701,6 +704,11 @@ impl Task for ImitationTask {
         {
             let [ex, ey] = self.to_world([sx, sy]);
             self.seat_offset = [wx - ex, wy - ey, wrap_angle(wyaw - syaw - self.yaw)];
+        }
+        if let (Some((state, _)), None, Some(prop)) = (from_pool, settings.seat, settings.delivered_seat)
+            && let Some([wx, wy, wyaw]) = state.seat_in_world(x, y, heading)
+        {
+            world.move_prop(prop, wx, wy, wyaw).expect("the delivered seat is a validated fixed prop");
         }
         // The pedestal's jitter: full before the clip's hands reach it, none once they hold
         // (lift) or have let go of (put_down) the box, which the rest of the clip assumes.

@@ -151,6 +151,27 @@ impl SkillSetup {
             }
             None => None,
         };
+        let delivered_seat = match &s.delivered_seat {
+            Some(name) => {
+                let id = model.prop_id(name).filter(|&id| !model.scenario.scenario.props[id].is_free());
+                let id = id.ok_or_else(|| {
+                    SkillError::Invalid(format!(
+                        "{}: delivered_seat `{name}` is not a fixed prop of the scene {}",
+                        spec.path.display(),
+                        model.scenario.path.display()
+                    ))
+                })?;
+                if seat.is_some() {
+                    return Err(SkillError::Invalid(format!(
+                        "{}: delivered_seat is for skills without a seat goal (a seat goal's chair follows a \
+                         delivered state already)",
+                        spec.path.display()
+                    )));
+                }
+                Some(id)
+            }
+            None => None,
+        };
         let mut pools = Vec::new();
         if let Init::Pools { from, .. } = &s.init {
             for name in from {
@@ -196,6 +217,7 @@ impl SkillSetup {
             object,
             grip: s.grip,
             obstacle,
+            delivered_seat,
         });
         Ok(SkillSetup { spec, model, body, layout, settings, clip, max_steps: max_steps.max(1) })
     }

@@ -538,6 +538,13 @@ pub struct SkillSpec {
     /// A prop put in the way of a steering goal's targets ([`Obstacle`]); none by default.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub obstacle: Option<Obstacle>,
+    /// For a skill without a seat goal that a sitting controller hands over to before the sit
+    /// (the stand): the fixed prop of its scene that a pool state recorded by `repertoire meta
+    /// deliver` puts where the controller left the seat, so the skill trains with the chair
+    /// where it will meet it. A state without a recorded seat leaves the prop where the scene
+    /// puts it. A seat goal's chair always follows a delivered state; none by default.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub delivered_seat: Option<String>,
 }
 
 fn is_false(b: &bool) -> bool {

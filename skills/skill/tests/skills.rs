@@ -942,3 +942,64 @@ fn walk_around_sees_the_chair_put_in_its_way_and_a_touch_ends_the_episode() {
     let err = SkillSetup::new(SpecFile::parse(&path, &bad).unwrap(), &dir).err().expect("no sofa").to_string();
     assert!(err.contains("w.ron") && err.contains("`sofa`") && err.contains("arena_chair.ron"), "{err}");
 }
+
+#[test]
+fn a_delivered_seat_puts_the_chair_where_the_controller_left_it_for_a_skill_without_a_seat_goal() {
+    // stand_handover.ron: the stand in the sitting scene, the chair following delivered states.
+    let library = Path::new(env!("CARGO_MANIFEST_DIR")).join("../library");
+    let dir = temp("delivered-seat");
+    let s = setup("stand_handover.ron", &library);
+    let chair = s.settings.delivered_seat.expect("stand_handover names the chair");
+    assert!(s.settings.seat.is_none(), "the stand has no seat goal");
+    // A state with the seat 0.7 m behind the character and turned 30°, as `meta deliver` records.
+    let mut env = s.env();
+    let mut obs = vec![0.0; env.obs_dim()];
+    let mut rng = EnvRng::seed_from_u64(5);
+    env.reset(&mut rng, &mut obs);
+    let mut state = PoolState::capture(env.world());
+    state.seat = Some([-0.7, 0.1, 0.5]);
+    let pool = Pool { skill: "handed-over:stand".into(), body_hash: s.model.body.content_hash(), states: vec![state] };
+    let path = dir.join("stand-handovers.ron");
+    pool.save(&path).unwrap();
+    let from_pool = |delivered: Option<&str>| {
+        let mut spec = s.spec.clone();
+        spec.spec.init = repertoire_skill::spec::Init::Pools {
+            from: vec![path.to_string_lossy().into_owned()],
+            fraction: 1.0,
+            speed: (1.0, 1.0),
+        };
+        spec.spec.delivered_seat = delivered.map(str::to_string);
+        SkillSetup::new(spec, &library).unwrap()
+    };
+    let seat_seen = |setup: &SkillSetup, seed: u64| {
+        let mut env = setup.env();
+        let mut obs = vec![0.0; env.obs_dim()];
+        env.reset(&mut EnvRng::seed_from_u64(seed), &mut obs);
+        PoolState::capture_with_seat(env.world(), &env.world().placements()[chair]).seat.unwrap()
+    };
+    let follows = from_pool(Some("chair"));
+    for seed in 0..4 {
+        let seat = seat_seen(&follows, seed);
+        let want = [-0.7, 0.1, 0.5];
+        assert!((0..3).all(|k| (seat[k] - want[k]).abs() < 1e-6), "seed {seed}: the seat at {seat:?}, wanted {want:?}");
+    }
+    // Without the field the chair stays where the scene puts it, well away from that spot.
+    let stays = seat_seen(&from_pool(None), 0);
+    assert!((stays[0] + 0.7).hypot(stays[1] - 0.1) > 0.5, "the scene's chair at {stays:?}");
+
+    // Refused, naming the file: a prop the scene lacks, and a skill whose seat goal moves it already.
+    let text = std::fs::read_to_string(specs().join("stand_handover.ron")).unwrap();
+    let bad = specs().join("s.ron");
+    let sofa = text.replace("delivered_seat: Some(\"chair\")", "delivered_seat: Some(\"sofa\")");
+    assert_ne!(sofa, text);
+    let err = SkillSetup::new(SpecFile::parse(&bad, &sofa).unwrap(), &library).err().expect("no sofa").to_string();
+    assert!(err.contains("s.ron") && err.contains("`sofa`"), "{err}");
+    let sit = std::fs::read_to_string(specs().join("sit_handover.ron")).unwrap();
+    let sit = sit.replacen(
+        "    scene: \"builtin:sit\",",
+        "    scene: \"builtin:sit\",\n    delivered_seat: Some(\"chair\"),",
+        1,
+    );
+    let err = SkillSetup::new(SpecFile::parse(&bad, &sit).unwrap(), &library).err().expect("a seat goal").to_string();
+    assert!(err.contains("s.ron") && err.contains("seat goal"), "{err}");
+}
