@@ -951,7 +951,7 @@ fn a_delivered_seat_puts_the_chair_where_the_controller_left_it_for_a_skill_with
     let s = setup("stand_handover.ron", &library);
     let chair = s.settings.delivered_seat.expect("stand_handover names the chair");
     assert!(s.settings.seat.is_none(), "the stand has no seat goal");
-    // A state with the seat 0.7 m behind the character and turned 30°, as `meta deliver` records.
+    // A state with the seat 0.7 m behind the character and turned 0.5 rad, as `meta deliver` records.
     let mut env = s.env();
     let mut obs = vec![0.0; env.obs_dim()];
     let mut rng = EnvRng::seed_from_u64(5);
