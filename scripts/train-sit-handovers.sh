@@ -27,6 +27,10 @@
 # sit, two rounds, from the stop-41 library (49.4 -> 51.3 -> 52.2 % seated over all zones):
 #   DELIVER_TRIALS=2 SIT_HANDOVER_ITERS=0 META_ITERS=0 META_MORE="1:1200 3:1000" \
 #     RUN=runs/meta-42 bash scripts/train-sit-handovers.sh
+# Stop 47 (the shipped sit; README "Stop 47") fitted the sit once more, to the stop-46
+# controller's handovers, and re-pinned that controller (53.6 -> 54.7 % seated over all zones):
+#   DELIVER_TRIALS=600 MAX_STATES=2000 SIT_SPEC=sit_handover.ron REPIN=1 META_ITERS=0 META_MORE= \
+#     EXTRA="--seed 47" RUN=runs/sit-handovers-47 bash scripts/train-sit-handovers.sh
 # (SIT_SPEC: the spec fine-tuned, sit_reach.ron by default; SIT_FRACTION: the share of episodes
 # from the pools, 0.8; SIT_ROUNDS: fine-tunes of SIT_HANDOVER_ITERS one after the other from the
 # same handovers, 1; MAX_STATES: the most states a delivery keeps, 1000; REPIN=1: keep the

@@ -231,11 +231,17 @@ fn seat_distance(world: &World, seat: usize) -> f64 {
 pub fn sit_potential(world: &World, seat: usize, approach: &SitApproach) -> f64 {
     match approach {
         SitApproach::Seat => seat_distance(world, seat),
-        SitApproach::Spot { ahead_m, heading_m, turn_within_m } => {
+        SitApproach::Spot { ahead_m, heading_m, turn_within_m, around } => {
             let p = world.pelvis_frame().pos;
             let pl = world.placements()[seat];
             let spot = [pl.pos[0] + ahead_m * pl.yaw.cos(), pl.pos[1] + ahead_m * pl.yaw.sin()];
-            let d = (p[0] - spot[0]).hypot(p[1] - spot[1]);
+            let d = match around {
+                Some(a) => {
+                    let centre = [pl.pos[0] - a.behind_m * pl.yaw.cos(), pl.pos[1] - a.behind_m * pl.yaw.sin()];
+                    distance_round_disc([p[0], p[1]], spot, centre, a.radius_m)
+                }
+                None => (p[0] - spot[0]).hypot(p[1] - spot[1]),
+            };
             let heading = world.heading();
             let away = wrap_angle(heading - pl.yaw).abs();
             let error = match turn_within_m {
@@ -250,6 +256,38 @@ pub fn sit_potential(world: &World, seat: usize, approach: &SitApproach) -> f64 
             };
             d + heading_m * error
         }
+    }
+}
+
+/// Length of the shortest way from `from` to `to` (a point outside the disc) that does not cross
+/// the disc of radius `radius` about `centre`: the straight line where it clears the disc, else
+/// the tangent from `from`, the arc and the tangent to `to`. From inside the disc it is the way
+/// out along the radius plus the way on from where it leaves (so it is continuous across the
+/// circle; at the very centre it leaves towards `to`).
+pub fn distance_round_disc(from: [f64; 2], to: [f64; 2], centre: [f64; 2], radius: f64) -> f64 {
+    let (mut fx, mut fy) = (from[0] - centre[0], from[1] - centre[1]);
+    let (tx, ty) = (to[0] - centre[0], to[1] - centre[1]);
+    let rt = tx.hypot(ty).max(radius);
+    let mut rf = fx.hypot(fy);
+    let mut out = 0.0;
+    if rf < radius {
+        // Out along the radius first (not by recursion: the exit point, rounded, may lie a hair
+        // inside the circle again).
+        let (ux, uy) = if rf > 1e-12 { (fx / rf, fy / rf) } else { (tx / rt, ty / rt) };
+        out = radius - rf;
+        (fx, fy, rf) = (radius * ux, radius * uy, radius);
+    }
+    let from = [centre[0] + fx, centre[1] + fy];
+    // The angle between the two points seen from the centre, and how much of it each point's
+    // tangent covers: the straight way is blocked exactly when the tangents do not meet.
+    let between = (fx * ty - fy * tx).atan2(fx * tx + fy * ty).abs();
+    let (af, at) = ((radius / rf).min(1.0).acos(), (radius / rt).min(1.0).acos());
+    out + if between <= af + at {
+        (to[0] - from[0]).hypot(to[1] - from[1])
+    } else {
+        (rf * rf - radius * radius).max(0.0).sqrt()
+            + (rt * rt - radius * radius).max(0.0).sqrt()
+            + radius * (between - af - at)
     }
 }
 

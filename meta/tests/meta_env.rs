@@ -521,7 +521,7 @@ fn the_spot_approach_pays_for_arriving_where_the_sit_starts() {
         (ahead + 0.4).abs() < 0.05 && left.abs() < 0.05 && yaw.abs() < 0.05,
         "the seat 0.4 m behind: {ahead} {left} {yaw}"
     );
-    let spot = SitApproach::Spot { ahead_m: 0.4, heading_m: 0.3, turn_within_m: None };
+    let spot = SitApproach::Spot { ahead_m: 0.4, heading_m: 0.3, turn_within_m: None, around: None };
     let mut env = s.env();
     ImitationTask::new(s.settings.clone()).place_at_frame(env.world_mut(), 0, 0.4, -0.3, 0.7);
     let world = env.world_mut();
@@ -549,8 +549,8 @@ fn with_turn_within_m_the_spot_approach_pays_for_facing_the_spot_far_off_and_the
     use repertoire_scenes::SitApproach;
     use std::f64::consts::PI;
     let (s, chair) = sit_skill();
-    let fixed = SitApproach::Spot { ahead_m: 0.4, heading_m: 0.3, turn_within_m: None };
-    let turning = SitApproach::Spot { ahead_m: 0.4, heading_m: 0.3, turn_within_m: Some(1.5) };
+    let fixed = SitApproach::Spot { ahead_m: 0.4, heading_m: 0.3, turn_within_m: None, around: None };
+    let turning = SitApproach::Spot { ahead_m: 0.4, heading_m: 0.3, turn_within_m: Some(1.5), around: None };
     let mut env = s.env();
     let world = env.world_mut();
     let pl = world.placements()[chair];
@@ -580,6 +580,110 @@ fn with_turn_within_m_the_spot_approach_pays_for_facing_the_spot_far_off_and_the
 }
 
 #[test]
+fn the_way_round_a_disc_is_straight_where_clear_tangent_and_arc_where_blocked_and_continuous() {
+    use repertoire_meta::task::distance_round_disc;
+    use std::f64::consts::PI;
+    let o = [0.0, 0.0];
+    let close = |got: f64, want: f64, what: &str| assert!((got - want).abs() < 1e-9, "{what}: {got}, want {want}");
+    // Clear of the disc: the straight line.
+    close(distance_round_disc([2.0, 1.5], [2.0, -1.5], o, 1.0), 3.0, "beside the disc");
+    // Straight through the centre: two tangents of √3 and a third of the circle's half.
+    close(distance_round_disc([-2.0, 0.0], [2.0, 0.0], o, 1.0), 2.0 * 3f64.sqrt() + PI / 3.0, "across the disc");
+    // Symmetric, and unchanged by moving the whole picture.
+    close(distance_round_disc([2.0, 0.0], [-2.0, 0.0], o, 1.0), 2.0 * 3f64.sqrt() + PI / 3.0, "the way back");
+    close(
+        distance_round_disc([3.0, 5.0], [7.0, 5.0], [5.0, 5.0], 1.0),
+        2.0 * 3f64.sqrt() + PI / 3.0,
+        "moved by (5, 5)",
+    );
+    // Never shorter than the straight line, longer exactly when the line crosses the disc.
+    let straight = |a: [f64; 2], b: [f64; 2]| (a[0] - b[0]).hypot(a[1] - b[1]);
+    for (a, b, crosses) in [
+        ([-2.0, 0.5], [2.0, 0.5], true),
+        ([-2.0, 1.01], [2.0, 1.01], false),
+        ([-1.5, -1.5], [1.5, 1.5], true),
+        ([0.0, 3.0], [3.0, 0.0], false),
+    ] {
+        let d = distance_round_disc(a, b, o, 1.0);
+        assert!(d >= straight(a, b) - 1e-12, "{a:?} → {b:?}: {d}");
+        assert_eq!(d > straight(a, b) + 1e-9, crosses, "{a:?} → {b:?}: {d} against {}", straight(a, b));
+    }
+    // Continuous as the start sweeps round behind the disc and across its edge into it.
+    let mut last: Option<f64> = None;
+    for i in 0..=400 {
+        let angle = PI / 2.0 + PI * i as f64 / 400.0;
+        let d = distance_round_disc([2.0 * angle.cos(), 2.0 * angle.sin()], [1.5, 0.0], o, 1.0);
+        if let Some(l) = last {
+            assert!((d - l).abs() < 0.02, "a jump at {angle}: {l} → {d}");
+        }
+        last = Some(d);
+    }
+    let (outside, inside) = (
+        distance_round_disc([-1.0001, 0.0], [1.5, 0.0], o, 1.0),
+        distance_round_disc([-0.9999, 0.0], [1.5, 0.0], o, 1.0),
+    );
+    assert!((outside - inside).abs() < 1e-3, "across the circle: {outside} against {inside}");
+    // From inside: out along the radius, then on; from the centre, straight towards the target.
+    close(distance_round_disc([0.0, 0.0], [1.5, 0.0], o, 1.0), 1.5, "from the centre");
+    // Everywhere inside, however the exit point rounds (it once recursed without end): finite,
+    // and at least the straight way.
+    for i in 0..2000 {
+        let (angle, r) = (i as f64 * 0.7311, 0.6 * (i as f64 / 2000.0));
+        let from = [-0.3 + r * angle.cos(), 0.1 + r * angle.sin()];
+        let d = distance_round_disc(from, [0.4, 0.0], [-0.3, 0.0], 0.6);
+        assert!(d.is_finite() && d >= (from[0] - 0.4).hypot(from[1]) - 1e-9, "from {from:?}: {d}");
+    }
+    close(distance_round_disc([0.5, 0.0], [1.5, 0.0], o, 1.0), 1.0, "on the way out");
+    // From 0.5 m behind the centre: 0.5 m out, then from the circle (no tangent of its own) round
+    // to the target's tangent point and along it.
+    close(
+        distance_round_disc([-0.5, 0.0], [1.5, 0.0], o, 1.0),
+        0.5 + 1.25f64.sqrt() + PI - (1.0f64 / 1.5).acos(),
+        "out behind, then round",
+    );
+}
+
+#[test]
+fn the_spot_approach_round_the_chair_costs_more_from_behind_and_the_same_in_front() {
+    // `around`: the distance to the spot is measured round a disc over the chair, so from
+    // behind the chair the way round is longer than the straight line through it; in front of
+    // the chair, along its axis, on the seat included, it is the same as without.
+    use repertoire_meta::task::sit_potential;
+    use repertoire_scenes::{SitApproach, SpotAround};
+    let (s, chair) = sit_skill();
+    let straight = SitApproach::Spot { ahead_m: 0.4, heading_m: 0.3, turn_within_m: None, around: None };
+    let round = SitApproach::Spot {
+        ahead_m: 0.4,
+        heading_m: 0.3,
+        turn_within_m: None,
+        around: Some(SpotAround { radius_m: 0.6, behind_m: 0.3 }),
+    };
+    let mut env = s.env();
+    let world = env.world_mut();
+    let pl = world.placements()[chair];
+    let u = [pl.yaw.cos(), pl.yaw.sin()];
+    let mut at = |ahead: f64, approach: &SitApproach| {
+        world.place_standing(pl.pos[0] + ahead * u[0], pl.pos[1] + ahead * u[1], pl.yaw);
+        sit_potential(world, chair, approach)
+    };
+    for ahead in [2.5, 1.0, 0.4, 0.2, 0.0] {
+        let (a, b) = (at(ahead, &straight), at(ahead, &round));
+        assert!((a - b).abs() < 1e-9, "{ahead} m in front of the seat: {a} against {b}");
+    }
+    // 2 m behind the seat: straight 2.4 m; round the disc (0.6 m about 0.3 m behind the seat)
+    // from 1.7 m behind its centre to 0.7 m in front of it: two tangents and half a turn less
+    // what they cover.
+    let (a, b) = (at(-2.0, &straight), at(-2.0, &round));
+    let (rf, rt, r) = (1.7f64, 0.7f64, 0.6f64);
+    let way = (rf * rf - r * r).sqrt()
+        + (rt * rt - r * r).sqrt()
+        + r * (std::f64::consts::PI - (r / rf).acos() - (r / rt).acos());
+    assert!((a - 2.4).abs() < 0.02, "straight from behind: {a}");
+    assert!((b - way).abs() < 0.03, "round from behind: {b}, want about {way}");
+    assert!(b > a + 0.3, "the way round is longer: {b} against {a}");
+}
+
+#[test]
 fn a_fall_forfeits_the_approach_reward_only_when_the_scenario_says_so() {
     // `on_fall: Forfeit`: the decision that ends in a fall pays back, negated, the approach
     // reward the episode earned, so walking towards the chair and falling earns nothing;
@@ -588,7 +692,7 @@ fn a_fall_forfeits_the_approach_reward_only_when_the_scenario_says_so() {
     use repertoire_meta::task::{EpisodeOverride, TaskSpec, sit_potential};
     use repertoire_scenes::{SitApproach, SitFall};
     let (s, chair) = sit_skill();
-    let approach = SitApproach::Spot { ahead_m: 0.4, heading_m: 0.3, turn_within_m: None };
+    let approach = SitApproach::Spot { ahead_m: 0.4, heading_m: 0.3, turn_within_m: None, around: None };
     let mut env = s.env();
     let world = env.world_mut();
     let pl = world.placements()[chair];

@@ -588,7 +588,29 @@ pub enum SitApproach {
         /// `None` (the default): always from the way the chair faces.
         #[serde(default)]
         turn_within_m: Option<f64>,
+        /// With it, `d` is measured round a disc kept clear about the chair (see [`SpotAround`])
+        /// instead of in a straight line, so that walking past the chair towards the spot pays
+        /// and walking into its back does not. `None` (the default): the straight distance.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        around: Option<SpotAround>,
     },
+}
+
+/// The disc the Spot approach measures its distance round ([`SitApproach::Spot`]'s `around`):
+/// centred `behind_m` behind the seat's centre (along the way the chair faces) with radius
+/// `radius_m`, so that it covers the chair and a margin for the body while the spot, `ahead_m`
+/// in front of the seat, lies outside it (`radius_m − behind_m < ahead_m`). The distance from a
+/// pelvis outside the disc is the shortest way to the spot that does not cross it (straight,
+/// or along a tangent, the circle and the spot's tangent); from inside, the way out radially plus
+/// the way from where it leaves. Both are continuous, and along the chair's front axis it equals
+/// the straight distance, so the sit's own descent onto the seat pays as it does without it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpotAround {
+    /// Radius of the disc (m).
+    pub radius_m: f64,
+    /// How far the disc's centre lies behind the seat's centre (m).
+    pub behind_m: f64,
 }
 
 /// What a fall does to the sit task's approach reward.
@@ -966,7 +988,7 @@ impl ScenarioFile {
                         format!("the sit task's facing_deg must be in (0, 180], got {facing_deg}"),
                     ));
                 }
-                if let SitApproach::Spot { ahead_m, heading_m, turn_within_m } = approach {
+                if let SitApproach::Spot { ahead_m, heading_m, turn_within_m, around } = approach {
                     if !(ahead_m.is_finite() && *ahead_m >= 0.0 && heading_m.is_finite() && *heading_m >= 0.0) {
                         return Err(self.invalid(
                             Some("approach"),
@@ -982,6 +1004,26 @@ impl ScenarioFile {
                             Some("turn_within_m"),
                             format!("the sit task's Spot approach needs turn_within_m > 0 (metres), got {r}"),
                         ));
+                    }
+                    if let Some(SpotAround { radius_m, behind_m }) = around {
+                        if !(radius_m.is_finite() && *radius_m > 0.0 && behind_m.is_finite() && *behind_m >= 0.0) {
+                            return Err(self.invalid(
+                                Some("around"),
+                                format!(
+                                    "the sit task's Spot approach needs around's radius_m > 0 and behind_m ≥ 0 \
+                                     (metres), got {radius_m} and {behind_m}"
+                                ),
+                            ));
+                        }
+                        if radius_m - behind_m >= *ahead_m {
+                            return Err(self.invalid(
+                                Some("around"),
+                                format!(
+                                    "the sit task's Spot approach puts its spot inside the disc it goes round: \
+                                     radius_m − behind_m ({radius_m} − {behind_m}) must be less than ahead_m ({ahead_m})"
+                                ),
+                            ));
+                        }
                     }
                 }
                 match self.prop(seat) {

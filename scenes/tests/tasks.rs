@@ -3,7 +3,7 @@
 
 use rand::SeedableRng;
 use rand::rngs::StdRng;
-use repertoire_scenes::scenario::{SitApproach, SitFall, Task, WarehousePhase};
+use repertoire_scenes::scenario::{SitApproach, SitFall, SpotAround, Task, WarehousePhase};
 use repertoire_scenes::{Feature, Location, ObservationLayout, ScenarioFile, SceneError, World, WorldModel};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -192,11 +192,28 @@ fn prop_bindings_parse_and_bad_ones_are_located() {
     let text = format!("{HEAD}\n    task: Sit(seat: \"chair\", approach: Spot(ahead_m: 0.4, heading_m: 0.3)),\n)");
     match parse(&text).unwrap().scenario.task {
         Task::Sit { approach, .. } => {
-            assert_eq!(approach, SitApproach::Spot { ahead_m: 0.4, heading_m: 0.3, turn_within_m: None })
+            assert_eq!(approach, SitApproach::Spot { ahead_m: 0.4, heading_m: 0.3, turn_within_m: None, around: None })
         }
         other => panic!("{other:?}"),
     }
-    for bad in ["Spot(ahead_m: -0.4, heading_m: 0.3)", "Spot(ahead_m: 0.4, heading_m: -1.0)"] {
+    let text = format!(
+        "{HEAD}\n    task: Sit(seat: \"chair\", approach: Spot(ahead_m: 0.4, heading_m: 0.3, \
+         around: (radius_m: 0.6, behind_m: 0.3))),\n)"
+    );
+    match parse(&text).unwrap().scenario.task {
+        Task::Sit { approach: SitApproach::Spot { around: Some(a), .. }, .. } => {
+            assert_eq!(a, SpotAround { radius_m: 0.6, behind_m: 0.3 })
+        }
+        other => panic!("{other:?}"),
+    }
+    for bad in [
+        "Spot(ahead_m: -0.4, heading_m: 0.3)",
+        "Spot(ahead_m: 0.4, heading_m: -1.0)",
+        "Spot(ahead_m: 0.4, heading_m: 0.3, around: (radius_m: 0.0, behind_m: 0.3))",
+        "Spot(ahead_m: 0.4, heading_m: 0.3, around: (radius_m: 0.6, behind_m: -0.1))",
+        // The spot inside the disc: 0.6 − 0.1 ≥ 0.4.
+        "Spot(ahead_m: 0.4, heading_m: 0.3, around: (radius_m: 0.6, behind_m: 0.1))",
+    ] {
         let text = format!("{HEAD}\n    task: Sit(seat: \"chair\", approach: {bad}),\n)");
         let msg = parse(&text).err().unwrap_or_else(|| panic!("accepted {bad}")).to_string();
         assert!(msg.starts_with("task.ron:") && msg.contains("approach"), "{bad} → {msg}");
@@ -278,7 +295,7 @@ fn every_shipped_scenario_builds_and_the_paper_reward_variant_differs_from_sit_o
     let sit = ScenarioFile::load(shipped("sit.ron")).unwrap().scenario;
     match &sit.task {
         Task::Sit { approach, .. } => {
-            assert_eq!(*approach, SitApproach::Spot { ahead_m: 0.4, heading_m: 0.3, turn_within_m: None })
+            assert_eq!(*approach, SitApproach::Spot { ahead_m: 0.4, heading_m: 0.3, turn_within_m: None, around: None })
         }
         other => panic!("{other:?}"),
     }
@@ -286,7 +303,7 @@ fn every_shipped_scenario_builds_and_the_paper_reward_variant_differs_from_sit_o
     match &mut paper.task {
         Task::Sit { approach, .. } => {
             assert_eq!(*approach, SitApproach::Seat);
-            *approach = SitApproach::Spot { ahead_m: 0.4, heading_m: 0.3, turn_within_m: None };
+            *approach = SitApproach::Spot { ahead_m: 0.4, heading_m: 0.3, turn_within_m: None, around: None };
         }
         other => panic!("{other:?}"),
     }
@@ -295,7 +312,7 @@ fn every_shipped_scenario_builds_and_the_paper_reward_variant_differs_from_sit_o
 }
 
 #[test]
-fn the_forfeit_and_touch_variants_differ_from_sit_only_in_their_reward() {
+fn the_forfeit_touch_and_round_variants_differ_from_sit_only_in_their_reward() {
     let sit = ScenarioFile::load(shipped("sit.ron")).unwrap().scenario;
     let mut forfeit = ScenarioFile::load(shipped("sit_forfeit.ron")).unwrap().scenario;
     match &mut forfeit.task {
@@ -313,7 +330,14 @@ fn the_forfeit_and_touch_variants_differ_from_sit_only_in_their_reward() {
         }
         other => panic!("{other:?}"),
     }
-    for mut variant in [forfeit, touch] {
+    let mut round = ScenarioFile::load(shipped("sit_round.ron")).unwrap().scenario;
+    match &mut round.task {
+        Task::Sit { approach: SitApproach::Spot { around, .. }, .. } => {
+            assert_eq!(around.take(), Some(SpotAround { radius_m: 0.6, behind_m: 0.3 }));
+        }
+        other => panic!("{other:?}"),
+    }
+    for mut variant in [forfeit, touch, round] {
         variant.name = sit.name.clone();
         assert_eq!(variant, sit, "the same scene, skills, zones and success test");
     }

@@ -159,11 +159,19 @@ fn describe_task(task: &Task) -> String {
              within {time_limit_s} s; {}{}{}",
             match approach {
                 SitApproach::Seat => "rewarded for approaching the seat".to_string(),
-                SitApproach::Spot { ahead_m, turn_within_m: None, .. } =>
-                    format!("rewarded for approaching the spot {ahead_m} m in front of the seat, facing away from it"),
-                SitApproach::Spot { ahead_m, turn_within_m: Some(r), .. } => format!(
-                    "rewarded for approaching the spot {ahead_m} m in front of the seat, facing it beyond {r} m \
-                     and turning within"
+                SitApproach::Spot { ahead_m, turn_within_m, around, .. } => format!(
+                    "rewarded for approaching the spot {ahead_m} m in front of the seat{}, {}",
+                    match around {
+                        Some(a) => format!(
+                            " the way round a disc of {} m about {} m behind the seat's centre",
+                            a.radius_m, a.behind_m
+                        ),
+                        None => String::new(),
+                    },
+                    match turn_within_m {
+                        Some(r) => format!("facing it beyond {r} m and turning within"),
+                        None => "facing away from it".to_string(),
+                    }
                 ),
             },
             match on_fall {
