@@ -210,9 +210,24 @@ fn meta_train_eval_and_the_main_job() {
     assert!(!out.status.success() && err.contains("no-readiness/readiness.ron"), "{err}");
     let out = repertoire(&[&args[..], &["--oracle-sit", "--ready-at", "1.5"]].concat());
     assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("not a probability"));
-    // The main job runs the trained controller on the default scenario.
+    // The controller checked in a copy before it commits writes its own report; it cannot be
+    // combined with another way of choosing, and zero candidates are refused.
+    let text = ok(&repertoire(&[&args[..], &["--lookahead", "2", "--lookahead-searches", "1"]].concat()));
+    assert!(text.contains("| front | 1 |") && text.contains("controller with lookahead (2 candidates"), "{text}");
+    assert!(meta.join("eval-lookahead/report.md").exists());
+    for bad in [&["--lookahead", "0"][..], &["--lookahead", "2", "--oracle-sit"], &["--lookahead-searches", "2"]] {
+        let out = repertoire(&[&args[..], bad].concat());
+        assert!(!out.status.success(), "{bad:?} was accepted");
+    }
+    // Expert iteration needs the controller whose lookahead teaches.
+    let out = repertoire(&["meta", "distill", "--library", lib_s, "--episodes", "1", "--lookahead", "2"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("--warm-start"), "{err}");
+    // The main job runs the trained controller on the default scenario, with lookahead when asked.
     let text = ok(&repertoire(&["run", "--library", lib_s, "--trials", "1"]));
     assert!(text.contains("| front | 1 |") && text.contains("| behind | 1 |"), "{text}");
+    let text = ok(&repertoire(&["run", "--library", lib_s, "--trials", "1", "--lookahead", "2"]));
+    assert!(text.contains("looking ahead 2 candidates") && text.contains("| behind | 1 |"), "{text}");
     // Without a controller it says how to get one.
     let text = ok(&repertoire(&["run", "--meta", dir.join("none").to_str().unwrap(), "--seconds", "0.5"]));
     assert!(text.contains("no trained meta-controller"), "{text}");

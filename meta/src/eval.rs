@@ -18,6 +18,7 @@ use repertoire_scenes::world::PropPlacement;
 
 use crate::env::{MetaEnv, MetaSetup};
 use crate::error::{MetaError, Result};
+use crate::lookahead::{Lookahead, LookaheadConfig};
 use crate::planner::{Planner, PlannerConfig, terminal_skills};
 use crate::readiness::{Gate, Readiness, checked_act, terminal_choice};
 use repertoire_learn::classify::Classifier;
@@ -39,6 +40,10 @@ pub enum Controller<'a> {
     /// succeeding from here, the other skills otherwise. No search: it acts from the
     /// observation alone.
     Gated(&'a ActingHybrid, &'a Readiness, Gate),
+    /// A trained meta-controller checked in a copy of the episode before it commits
+    /// ([`crate::lookahead`]): its own decision and ones drawn from its policy, each played
+    /// out with the controller after it; the first that succeeds is taken.
+    Lookahead(&'a ActingHybrid, LookaheadConfig),
 }
 
 impl<'a> From<&'a ActingHybrid> for Controller<'a> {
@@ -53,9 +58,16 @@ pub(crate) enum Acting {
     Planner(Box<Planner>),
     Checked(Box<ActingHybrid>, Box<Planner>),
     Gated { head: Box<ActingHybrid>, readiness: Box<Classifier>, gate: Gate, terminal: Vec<bool> },
+    Lookahead(Box<Lookahead>),
 }
 
 impl Acting {
+    /// Whether the last decision differs from what the trained controller alone would have
+    /// chosen (a lookahead's search took another).
+    pub(crate) fn changed(&self) -> bool {
+        matches!(self, Acting::Lookahead(look) if look.changed)
+    }
+
     /// The decision for `env`, whose observation is `obs`, into `act` (`mask`: scratch).
     pub(crate) fn act(&mut self, env: &MetaEnv, obs: &[f32], mask: &mut [bool], act: &mut [f32]) {
         match self {
@@ -72,6 +84,7 @@ impl Acting {
                 }
                 head.act(obs, mask, act);
             }
+            Acting::Lookahead(look) => look.act(env, obs, act),
         }
     }
 }
@@ -89,6 +102,9 @@ impl Controller<'_> {
             },
             Controller::Checked(head, cfg) => {
                 Acting::Checked(Box::new((*head).clone()), Box::new(Planner::new(Arc::clone(setup), *cfg)))
+            }
+            Controller::Lookahead(head, cfg) => {
+                Acting::Lookahead(Box::new(Lookahead::new(Arc::clone(setup), head, *cfg)))
             }
         }
     }

@@ -11,6 +11,7 @@ pub mod eval;
 pub mod graph;
 pub mod judge;
 pub mod latent;
+pub mod lookahead;
 pub mod planner;
 pub mod readiness;
 pub mod refine;

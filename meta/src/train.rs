@@ -183,7 +183,7 @@ pub fn train(setup: Arc<MetaSetup>, opts: &MetaTrainOptions) -> Result<(MetaMani
             let mut ppo = Ppo::new(opts.ppo.clone(), envs);
             let from = warm_start(dir, &opts.replace, &setup, &mut ppo)?;
             let mut session = Session::fresh(ppo, &setup.model, &setup.zones, opts, setup.low_level())?;
-            session.state.warm_start = Some(from);
+            session.started_from(Some(from));
             session
         }
         None => Session::open(&setup.model, &setup.zones, envs, opts, setup.low_level())?,
@@ -198,7 +198,7 @@ pub fn train(setup: Arc<MetaSetup>, opts: &MetaTrainOptions) -> Result<(MetaMani
 /// other skills, body or observations than `setup`'s; skills retrained since are named in the
 /// record): its head and observation statistics, and its critic when it saved one. Returns what
 /// the new controller's manifest records of it.
-fn warm_start(
+pub(crate) fn warm_start(
     dir: &Path,
     replace: &[(String, String)],
     setup: &MetaSetup,
@@ -377,6 +377,11 @@ pub(crate) struct Session<'z, E: Env> {
 }
 
 impl<'z, E: Env> Session<'z, E> {
+    /// Records the trained controller this run started from (its manifest's `warm_start`).
+    pub(crate) fn started_from(&mut self, from: Option<WarmStart>) {
+        self.state.warm_start = from;
+    }
+
     /// `opts.ppo` over `envs` from scratch, or the checkpoint `opts.resume` continued: refused
     /// when it was trained over another low level than `low_level`, with(out) the curriculum
     /// when `opts` asks otherwise, under another curriculum schedule, with other PPO settings

@@ -315,7 +315,7 @@ fn the_planner_evaluates_reproducibly_and_only_plays_what_the_graph_allows() {
 
 #[test]
 fn the_planner_distilled_is_a_controller_that_loads_and_evaluates() {
-    use repertoire_meta::distill::{DistillOptions, distill};
+    use repertoire_meta::distill::{DistillOptions, Teacher, distill};
     use repertoire_meta::planner::PlannerConfig;
     let s = setup(None);
     let out = std::env::temp_dir().join(format!("repertoire-distill-{}", std::process::id()));
@@ -324,8 +324,10 @@ fn the_planner_distilled_is_a_controller_that_loads_and_evaluates() {
         out: out.clone(),
         episodes: 2,
         zones: vec!["front".into()],
-        planner: PlannerConfig { horizon: 3, repeats: 0 },
+        teacher: Teacher::Planner(PlannerConfig { horizon: 3, repeats: 0 }),
+        warm_start: None,
         successful_only: false,
+        changed_weight: 1,
         epochs: 3,
         batch: 8,
         ppo: PpoConfig { num_envs: 2, ..repertoire_meta::train::default_ppo() },
@@ -344,6 +346,8 @@ fn the_planner_distilled_is_a_controller_that_loads_and_evaluates() {
         }),
     };
     let (manifest, f) = distill(Arc::clone(&s), &opts).expect("distil");
+    assert!(manifest.warm_start.is_none(), "the planner's fit starts from a fresh policy");
+    assert_eq!(f.changed, 0, "the planner changes no controller's decisions");
     assert_eq!(f.episodes, 2);
     assert!(f.demonstrations >= 2, "every episode makes at least one decision");
     assert_eq!(manifest.iterations, 1, "the fit, then one PPO iteration");
@@ -1008,6 +1012,105 @@ fn a_warm_start_begins_where_the_controller_ended_and_records_it() {
     let both = MetaTrainOptions { resume: Some(dir.join("trained/run/checkpoints/iter-000002")), ..warm("x", 4) };
     let err = train(Arc::clone(&s), &both).expect_err("both").to_string();
     assert!(err.contains("--resume") && err.contains("--warm-start"), "{err}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A controller trained for one tiny iteration over the tests' library, in `dir/meta`.
+fn tiny_controller(s: &Arc<MetaSetup>, dir: &Path) -> repertoire_learn::acting::ActingHybrid {
+    let _ = std::fs::remove_dir_all(dir);
+    let opts = MetaTrainOptions {
+        out: dir.join("meta"),
+        run_dir: dir.join("run"),
+        ppo: PpoConfig { num_envs: 2, num_steps: 4, num_iterations: 1, ..repertoire_meta::train::default_ppo() },
+        curriculum: false,
+        command: "test".into(),
+        resume: None,
+        checkpoint_every: 0,
+        warm_start: None,
+        replace: Vec::new(),
+    };
+    train(Arc::clone(s), &opts).expect("train");
+    load(&dir.join("meta"), s).expect("load").1
+}
+
+#[test]
+fn the_lookahead_plays_out_what_its_copy_showed_and_with_one_candidate_is_the_controller() {
+    use repertoire_meta::distill::{DistillOptions, Teacher, distill};
+    use repertoire_meta::eval::Controller;
+    use repertoire_meta::lookahead::{Lookahead, LookaheadConfig};
+    let s = setup(None);
+    let dir = std::env::temp_dir().join(format!("repertoire-lookahead-{}", std::process::id()));
+    let mut head = tiny_controller(&s, &dir);
+    let zones = vec!["front".to_string(), "behind".to_string()];
+    // One candidate is the controller's own decision, never searched: the same trials.
+    let alone = evaluate(&s, &head, &zones, 3, 3, 5).expect("controller");
+    let one = LookaheadConfig { candidates: 1, searches: 4, seed: 0 };
+    assert_eq!(evaluate(&s, Controller::Lookahead(&head, one), &zones, 3, 3, 5).expect("lookahead"), alone);
+    // Reproducible for a seed, and every trial the controller seats it seats too.
+    let cfg = LookaheadConfig { candidates: 3, searches: 2, seed: 9 };
+    let a = evaluate(&s, Controller::Lookahead(&head, cfg), &zones, 3, 3, 5).expect("lookahead");
+    assert_eq!(a, evaluate(&s, Controller::Lookahead(&head, cfg), &zones, 3, 3, 5).expect("again"));
+    for (l, c) in a.trials.iter().zip(&alone.trials) {
+        assert!(l.success || !c.success, "the controller seated trial {} and the lookahead did not", c.index);
+    }
+    // The copy is exact: a candidate played in the episode, the controller after it, ends
+    // exactly as its rollout said, for the controller's own first decision and a drawn one.
+    for (i, drawn) in [(0u64, false), (1, true), (2, true)] {
+        let mut env = MetaEnv::new(Arc::clone(&s));
+        let mut look = Lookahead::new(Arc::clone(&s), &head, cfg);
+        let mut rng = EnvRng::seed_from_u64(40 + i);
+        let mut obs = vec![0.0; env.obs_dim()];
+        let mut act = vec![0.0; env.act_dim()];
+        let mut mask = vec![true; s.skills.len()];
+        env.reset(&mut rng, &mut obs);
+        env.option_mask(&mut mask);
+        if drawn {
+            head.sample(&obs, &mask, &mut rng, &mut act);
+        } else {
+            head.act(&obs, &mask, &mut act);
+        }
+        let said = look.rollout(&env.snapshot(), &act);
+        assert!(said.decisions >= 1 && look.simulated == u64::from(said.decisions), "{said:?}");
+        let mut decisions = 0;
+        let (success, fell, seconds) = loop {
+            let out = env.step(&act, &mut obs);
+            decisions += 1;
+            if out.terminated || out.truncated {
+                break (out.terms[0] > 0.5, out.terms[2] > 0.5, f64::from(out.terms[3]));
+            }
+            env.option_mask(&mut mask);
+            head.act(&obs, &mask, &mut act);
+        };
+        assert_eq!((said.success, said.fell, said.decisions, said.seconds), (success, fell, decisions, seconds));
+    }
+    // Expert iteration: the lookahead teaches the controller it looks ahead with, so it needs
+    // one; the fit starts from it and says so.
+    let mut opts = DistillOptions {
+        out: dir.join("expert"),
+        episodes: 2,
+        zones: vec!["front".into()],
+        teacher: Teacher::Lookahead(cfg),
+        warm_start: None,
+        successful_only: false,
+        changed_weight: 1,
+        epochs: 2,
+        batch: 8,
+        ppo: PpoConfig { num_envs: 2, ..repertoire_meta::train::default_ppo() },
+        seed: 4,
+        command: "test".into(),
+        then_train: None,
+    };
+    let err = distill(Arc::clone(&s), &opts).expect_err("no controller to look ahead with");
+    assert!(err.to_string().contains("warm start"), "{err}");
+    opts.warm_start = Some(dir.join("meta"));
+    let (manifest, f) = distill(Arc::clone(&s), &opts).expect("expert iteration");
+    assert_eq!(f.episodes, 2);
+    assert!(f.demonstrations >= 2 && f.losses.iter().all(|l| l.is_finite()), "{f:?}");
+    assert!(f.changed <= f.demonstrations, "{f:?}");
+    let from = manifest.warm_start.as_ref().expect("the fit records the controller it started from");
+    assert_eq!(from.from, dir.join("meta").display().to_string());
+    let (loaded, _) = load(&dir.join("expert"), &s).expect("the fitted controller loads");
+    assert_eq!(loaded, manifest);
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

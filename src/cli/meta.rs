@@ -10,9 +10,10 @@ use repertoire_learn::classify::ClassifierConfig;
 use repertoire_learn::env::Env as _;
 use repertoire_learn::ppo::IterationMetrics;
 use repertoire_meta::deliver::{DeliveryWindow, deliver};
-use repertoire_meta::distill::{DistillOptions, distill};
+use repertoire_meta::distill::{DistillOptions, Teacher, distill};
 use repertoire_meta::eval::{Controller, evaluate, save_worst};
 use repertoire_meta::latent::{self, LatentSetup};
+use repertoire_meta::lookahead::LookaheadConfig;
 use repertoire_meta::planner::PlannerConfig;
 use repertoire_meta::readiness::{Gate, Readiness, ReadinessOptions, learn};
 use repertoire_meta::refine::RefineSetup;
@@ -148,10 +149,13 @@ pub enum MetaCommand {
         #[arg(long, default_value_t = 1)]
         hold: usize,
     },
-    /// Distil the search-based planner (`meta eval --planner`) into a meta-controller: the
-    /// planner plays seeded episodes from each zone and a fresh hybrid policy is fitted to its
-    /// decisions by behaviour cloning (sitting scenarios). The result is an ordinary controller
-    /// that acts from its observation alone: evaluate it with `meta eval --meta OUT`.
+    /// Distil a search into a meta-controller (sitting scenarios): the search-based planner
+    /// (`meta eval --planner`), or with --lookahead K a trained controller's own lookahead
+    /// (`meta eval --lookahead K`, over --warm-start), plays seeded episodes from each zone and
+    /// a hybrid policy is fitted to its decisions by behaviour cloning: a fresh one for the
+    /// planner, the --warm-start controller for its lookahead (expert iteration). The result is
+    /// an ordinary controller that acts from its observation alone: evaluate it with
+    /// `meta eval --meta OUT`.
     Distill {
         /// Scenario RON file (default: the built-in scenes/sit.ron).
         file: Option<PathBuf>,
@@ -161,7 +165,7 @@ pub enum MetaCommand {
         /// Where the controller goes (default: runs/meta-distill-<scenario>).
         #[arg(long)]
         out: Option<PathBuf>,
-        /// Planner episodes per zone.
+        /// Teacher episodes per zone.
         #[arg(long, default_value_t = 200)]
         episodes: usize,
         /// Zones (default: all of the scenario's).
@@ -169,7 +173,25 @@ pub enum MetaCommand {
         zones: Vec<String>,
         #[command(flatten)]
         plan: PlannerArgs,
-        /// Fit only the decisions of the planner's successful episodes.
+        /// The teacher is the --warm-start controller's lookahead with K candidates a search
+        /// (as `meta eval --lookahead K`) instead of the planner.
+        #[arg(long, value_parser = clap::value_parser!(u32).range(1..), requires = "warm_start")]
+        lookahead: Option<u32>,
+        /// Most searches per episode with --lookahead.
+        #[arg(long, default_value_t = LookaheadConfig::default().searches, requires = "lookahead")]
+        lookahead_searches: u32,
+        /// Start the fit from this trained controller (head, observation statistics, critic)
+        /// instead of a fresh policy; required by --lookahead, whose controller it is.
+        #[arg(long)]
+        warm_start: Option<PathBuf>,
+        /// Learning rate of the fit (and of the PPO iterations after it).
+        #[arg(long)]
+        learning_rate: Option<f64>,
+        /// With --lookahead: times each decision the lookahead changed (took another than the
+        /// controller's own) counts in the fit; the others count once.
+        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..), requires = "lookahead")]
+        changed_weight: u32,
+        /// Fit only the decisions of the teacher's successful episodes.
         #[arg(long)]
         successful_only: bool,
         /// Passes over the demonstrations.
@@ -389,6 +411,17 @@ pub enum MetaCommand {
         /// gate alone decides; between the two the controller decides).
         #[arg(long, value_parser = probability)]
         veto_below: Option<f32>,
+        /// Sitting: the trained controller checked in a copy of the episode before it commits:
+        /// at a decision it plays K candidates there (its own decision, then K - 1 drawn from
+        /// its policy), each followed by the controller until the episode ends, and takes the
+        /// first that succeeds (else the best-scoring) (default report folder
+        /// CONTROLLER/eval-lookahead). Never seats fewer than the controller; costs K simulated
+        /// episodes a search.
+        #[arg(long, value_parser = clap::value_parser!(u32).range(1..), conflicts_with_all = ["planner", "oracle_sit", "readiness"])]
+        lookahead: Option<u32>,
+        /// Most searches per episode with --lookahead (then the controller acts alone).
+        #[arg(long, default_value_t = LookaheadConfig::default().searches, requires = "lookahead")]
+        lookahead_searches: u32,
         #[command(flatten)]
         plan: PlannerArgs,
     },
@@ -458,6 +491,11 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
             episodes,
             zones,
             plan,
+            lookahead,
+            lookahead_searches,
+            warm_start,
+            learning_rate,
+            changed_weight,
             successful_only,
             epochs,
             batch,
@@ -467,8 +505,18 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
             no_curriculum,
         } => {
             let setup = setup(file.as_ref(), &library, &[], &[])?;
-            sitting_only(&setup, "the planner, and so `meta distill`, handles")?;
-            let planner = plan.config()?;
+            sitting_only(&setup, "the planner and the lookahead, and so `meta distill`, handle")?;
+            let teacher = match lookahead {
+                Some(k) => {
+                    Teacher::Lookahead(LookaheadConfig { candidates: k as usize, searches: lookahead_searches, seed })
+                }
+                None => Teacher::Planner(plan.config()?),
+            };
+            if let Some(lr) = learning_rate
+                && !(lr > 0.0 && lr.is_finite())
+            {
+                bail!("--learning-rate {lr}: must be a positive number");
+            }
             if episodes == 0 || epochs == 0 {
                 bail!("--episodes and --epochs must each be at least 1");
             }
@@ -480,11 +528,20 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
                 out: out.clone(),
                 episodes,
                 zones,
-                planner,
+                teacher,
+                warm_start,
                 successful_only,
+                changed_weight: changed_weight as usize,
                 epochs,
                 batch,
-                ppo: repertoire_learn::ppo::PpoConfig { seed, ..default_ppo() },
+                ppo: {
+                    let ppo = default_ppo();
+                    repertoire_learn::ppo::PpoConfig {
+                        seed,
+                        learning_rate: learning_rate.unwrap_or(ppo.learning_rate),
+                        ..ppo
+                    }
+                },
                 seed,
                 then_train: (iterations > 0)
                     .then(|| {
@@ -499,7 +556,7 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
                             no_curriculum,
                             warm_start: None,
                             replace: Vec::new(),
-                            learning_rate: None,
+                            learning_rate,
                             critic_warmup: None,
                         };
                         let run = TrainRun { args, command: command.clone() };
@@ -511,14 +568,15 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
             let trained = opts.then_train.is_some();
             let (_, f) = distill(setup, &opts)?;
             println!(
-                "| planner episodes | successful | decisions fitted | planning (min) | fitting (min) | NLL first → last epoch |"
+                "| teacher episodes | successful | decisions fitted | changed by the teacher | teacher (min) | fitting (min) | NLL first → last epoch |"
             );
-            println!("|---:|---:|---:|---:|---:|---|");
+            println!("|---:|---:|---:|---:|---:|---:|---|");
             println!(
-                "| {} | {} | {} | {:.1} | {:.1} | {:.3} → {:.3} |",
+                "| {} | {} | {} | {} | {:.1} | {:.1} | {:.3} → {:.3} |",
                 f.episodes,
                 f.successes,
                 f.demonstrations,
+                f.changed,
                 f.planning_s / 60.0,
                 f.fitting_s / 60.0,
                 f.losses.first().copied().unwrap_or(f32::NAN),
@@ -741,6 +799,8 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
             readiness,
             ready_at,
             veto_below,
+            lookahead,
+            lookahead_searches,
             plan,
         } => {
             if planner {
@@ -783,11 +843,12 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
                 worst_recorded(&recs, &out);
                 return Ok(());
             }
-            let gated = oracle_sit || readiness.is_some() || ready_at.is_some() || veto_below.is_some();
+            let gated =
+                oracle_sit || readiness.is_some() || ready_at.is_some() || veto_below.is_some() || lookahead.is_some();
             if let Some((model, dir)) = latent_low_level(file.as_ref(), latent)? {
                 if gated {
                     bail!(
-                        "--oracle-sit, --readiness, --ready-at and --veto-below gate the skills' sit: not over a latent low level"
+                        "--oracle-sit, --readiness, --ready-at, --veto-below and --lookahead act over the skills: not over a latent low level"
                     );
                 }
                 no_skill_options(&chain, &skills)?;
@@ -801,7 +862,7 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
             let out_given = out.clone();
             let out = out.unwrap_or_else(|| meta.join("eval"));
             if gated {
-                sitting_only(&setup, "--oracle-sit, --readiness, --ready-at and --veto-below gate the sit of")?;
+                sitting_only(&setup, "--oracle-sit, --readiness, --ready-at, --veto-below and --lookahead act in")?;
             }
             match setup.task {
                 TaskSpec::Sit { .. } => {}
@@ -850,6 +911,28 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
                 let recs =
                     save_worst(&setup, controller, &report, &zones, trials, seed, worst, false, &out.join("worst"))?;
                 super::replay::pages_beside(&recs);
+                worst_recorded(&recs, &out);
+                return Ok(());
+            }
+            if let Some(k) = lookahead {
+                let cfg = LookaheadConfig { candidates: k as usize, searches: lookahead_searches, seed };
+                let out = out_given.unwrap_or_else(|| meta.join("eval-lookahead"));
+                let started = std::time::Instant::now();
+                let controller = Controller::Lookahead(&head, cfg);
+                let report = evaluate(&setup, controller, &zones, trials, batch, seed)?;
+                print!("{}", report.markdown());
+                report.write(&out)?;
+                println!(
+                    "\ncontroller with lookahead ({} candidates, at most {} searches an episode): {} trials in \
+                     {:.1} s; report.md, trials.csv and report.json written to {}",
+                    cfg.candidates,
+                    cfg.searches,
+                    report.trials.len(),
+                    started.elapsed().as_secs_f64(),
+                    out.display()
+                );
+                let recs =
+                    save_worst(&setup, controller, &report, &zones, trials, seed, worst, false, &out.join("worst"))?;
                 worst_recorded(&recs, &out);
                 return Ok(());
             }

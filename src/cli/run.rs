@@ -11,6 +11,8 @@ use anyhow::Result;
 use clap::Args;
 use rand::SeedableRng;
 use rand::rngs::StdRng;
+use repertoire_meta::eval::Controller;
+use repertoire_meta::lookahead::LookaheadConfig;
 use repertoire_meta::task_eval::{evaluate_toss, evaluate_warehouse, save_worst_toss, save_worst_warehouse};
 use repertoire_meta::{MetaSetup, TaskSpec};
 use repertoire_scenes::WorldModel;
@@ -38,6 +40,14 @@ pub struct RunArgs {
     /// Trials per spawn zone.
     #[arg(long, default_value_t = 20)]
     pub trials: usize,
+    /// Sitting: the controller checked in a copy of each episode before it commits, K
+    /// candidates a search (`meta eval --lookahead K`); it never seats fewer and costs K
+    /// simulated episodes a search.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    pub lookahead: Option<u32>,
+    /// Most searches per episode with --lookahead.
+    #[arg(long, default_value_t = LookaheadConfig::default().searches, requires = "lookahead")]
+    pub lookahead_searches: u32,
     /// Where the evaluation's reports and the worst trial of each zone (recording and replay
     /// page) go (default: runs/run-<time>-s<seed>).
     #[arg(long)]
@@ -63,11 +73,29 @@ pub fn run(args: RunArgs) -> Result<()> {
         let setup = super::meta::setup(args.file.as_ref(), &args.library, &[], &skills)?;
         let (manifest, head) = repertoire_meta::train::load(&meta, &setup)?;
         if !matches!(setup.task, TaskSpec::Sit { .. }) {
+            if args.lookahead.is_some() {
+                anyhow::bail!(
+                    "{}: --lookahead checks sitting controllers only (this scenario is {})",
+                    setup.model.scenario.path.display(),
+                    setup.task.name()
+                );
+            }
             return run_task(&setup, &head, &meta, &manifest.iterations_label(), &args);
         }
+        let controller = match args.lookahead {
+            Some(k) => Controller::Lookahead(
+                &head,
+                LookaheadConfig { candidates: k as usize, searches: args.lookahead_searches, seed: args.seed },
+            ),
+            None => Controller::Learned(&head),
+        };
         let zones: Vec<String> = setup.model.scenario.scenario.spawn.iter().map(|z| z.name.clone()).collect();
+        let looking = match args.lookahead {
+            Some(k) => format!(", looking ahead {k} candidates a search, at most {} searches", args.lookahead_searches),
+            None => String::new(),
+        };
         println!(
-            "scenario {} — meta-controller {} ({}) over skills {}; {} trials per zone",
+            "scenario {} — meta-controller {} ({}{looking}) over skills {}; {} trials per zone",
             setup.model.scenario.scenario.name,
             meta.display(),
             manifest.iterations_label(),
@@ -75,7 +103,7 @@ pub fn run(args: RunArgs) -> Result<()> {
             args.trials
         );
         let t0 = Instant::now();
-        let report = repertoire_meta::eval::evaluate(&setup, &head, &zones, args.trials, 64, args.seed)?;
+        let report = repertoire_meta::eval::evaluate(&setup, controller, &zones, args.trials, 64, args.seed)?;
         print!("{}", report.markdown());
         println!(
             "
@@ -88,7 +116,7 @@ pub fn run(args: RunArgs) -> Result<()> {
         report.write(&out)?;
         let recs = repertoire_meta::eval::save_worst(
             &setup,
-            &head,
+            controller,
             &report,
             &zones,
             args.trials,

@@ -385,6 +385,20 @@ impl ActingHybrid {
         }
     }
 
+    /// An allowed option and continuous part drawn from the head's distribution (the policy
+    /// PPO trained, rather than its mode) for raw observations.
+    pub fn sample(&mut self, obs: &[f32], masks: &[bool], rng: &mut impl rand::Rng, actions: &mut [f32]) {
+        let batch = obs.len() / self.obs_rms.dim().max(1);
+        let mut log_probs = vec![0.0; batch.max(1)];
+        if self.normalize_obs {
+            self.scratch.resize(obs.len(), 0.0);
+            self.obs_rms.normalize(obs, &mut self.scratch, OBS_CLIP);
+            self.head.sample(&self.scratch, masks, rng, actions, &mut log_probs);
+        } else {
+            self.head.sample(obs, masks, rng, actions, &mut log_probs);
+        }
+    }
+
     /// Starts `ppo`'s hybrid head and observation statistics from this controller (a warm
     /// start: the value network keeps its initialisation unless a critic is loaded as well).
     /// `Err` names the first thing that differs: no hybrid head, the options, the continuous
