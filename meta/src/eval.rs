@@ -68,6 +68,15 @@ impl Acting {
         matches!(self, Acting::Lookahead(look) if look.changed)
     }
 
+    /// Decisions simulated in copies of the episode so far (a search's cost).
+    pub(crate) fn simulated(&self) -> u64 {
+        match self {
+            Acting::Planner(planner) | Acting::Checked(_, planner) => planner.simulated,
+            Acting::Lookahead(look) => look.simulated,
+            Acting::Learned(_) | Acting::Gated { .. } => 0,
+        }
+    }
+
     /// The decision for `env`, whose observation is `obs`, into `act` (`mask`: scratch).
     pub(crate) fn act(&mut self, env: &MetaEnv, obs: &[f32], mask: &mut [bool], act: &mut [f32]) {
         match self {
@@ -136,6 +145,14 @@ pub struct Trial {
     /// The skill playing when the character first touched the chair (`None`: it never did).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub touched: Option<String>,
+    /// Decisions a searching controller (the planner, the lookahead, the oracle's check)
+    /// simulated in copies of the episode: its cost. 0 for one acting from its observation.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub simulated: u64,
+}
+
+fn is_zero(n: &u64) -> bool {
+    *n == 0
 }
 
 /// Per-zone figures.
@@ -251,7 +268,8 @@ fn run_trial(
         ctl.act(&env, &obs, &mut mask, &mut act);
         let out = env.step(&act, &mut obs);
         if out.terminated || out.truncated {
-            let trial = trial_of(setup, &env, i, zone, &out.terms, &names);
+            let mut trial = trial_of(setup, &env, i, zone, &out.terms, &names);
+            trial.simulated = ctl.simulated();
             return (trial, env.recording());
         }
     }
@@ -363,6 +381,7 @@ impl Trial {
             seconds: f64::from(terms[3]),
             skills,
             touched: None,
+            simulated: 0,
         }
     }
 }
@@ -456,6 +475,15 @@ impl MetaReport {
                 100.0 * r.fall_rate,
                 r.min_distance_mean,
                 r.min_distance_sd
+            );
+        }
+        let searched: Vec<u64> = self.trials.iter().map(|t| t.simulated).collect();
+        if searched.iter().any(|&n| n > 0) {
+            let mean = searched.iter().sum::<u64>() as f64 / searched.len() as f64;
+            let _ = writeln!(
+                s,
+                "\nsearch cost: {mean:.0} decisions simulated per trial in copies of the episode (most {})",
+                searched.iter().max().copied().unwrap_or(0)
             );
         }
         let endings = self.endings();
@@ -562,6 +590,7 @@ mod tests {
             seconds: 5.0,
             skills: skills.iter().map(|s| s.to_string()).collect(),
             touched: None,
+            simulated: 0,
         }
     }
 

@@ -1052,7 +1052,9 @@ fn the_lookahead_plays_out_what_its_copy_showed_and_with_one_candidate_is_the_co
     assert_eq!(a, evaluate(&s, Controller::Lookahead(&head, cfg), &zones, 3, 3, 5).expect("again"));
     for (l, c) in a.trials.iter().zip(&alone.trials) {
         assert!(l.success || !c.success, "the controller seated trial {} and the lookahead did not", c.index);
+        assert!(l.simulated >= 1 && c.simulated == 0, "the search's cost is counted: {l:?}");
     }
+    assert!(a.markdown().contains("search cost:") && !alone.markdown().contains("search cost:"));
     // The copy is exact: a candidate played in the episode, the controller after it, ends
     // exactly as its rollout said, for the controller's own first decision and a drawn one.
     for (i, drawn) in [(0u64, false), (1, true), (2, true)] {
@@ -1124,20 +1126,7 @@ fn the_oracle_sits_only_where_the_sit_succeeds_and_readiness_needs_a_ready_decis
     use repertoire_meta::readiness::{ReadinessOptions, learn};
     let s = setup(None);
     let dir = std::env::temp_dir().join(format!("repertoire-readiness-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    let opts = MetaTrainOptions {
-        out: dir.join("meta"),
-        run_dir: dir.join("run"),
-        ppo: PpoConfig { num_envs: 2, num_steps: 4, num_iterations: 1, ..repertoire_meta::train::default_ppo() },
-        curriculum: false,
-        command: "test".into(),
-        resume: None,
-        checkpoint_every: 0,
-        warm_start: None,
-        replace: Vec::new(),
-    };
-    train(Arc::clone(&s), &opts).expect("train");
-    let (_, head) = load(&dir.join("meta"), &s).expect("load");
+    let head = tiny_controller(&s, &dir);
     let cfg = PlannerConfig { horizon: 4, repeats: 0 };
     let zones = vec!["front".to_string()];
     let a = evaluate(&s, Controller::Checked(&head, cfg), &zones, 3, 3, 5).expect("oracle evaluation");
