@@ -14,6 +14,7 @@ use std::time::Instant;
 
 use rand::SeedableRng;
 use rayon::prelude::*;
+use repertoire_learn::acting::ActingHybrid;
 use repertoire_learn::env::{Env, EnvRng};
 use repertoire_learn::ppo::{Ppo, PpoConfig};
 
@@ -22,7 +23,7 @@ use crate::error::{MetaError, Result};
 use crate::eval::Controller;
 use crate::lookahead::LookaheadConfig;
 use crate::planner::PlannerConfig;
-use crate::train::{MetaManifest, MetaTrainOptions, Session, TrainedRun, load, save_controller, warm_start};
+use crate::train::{MetaManifest, MetaTrainOptions, Session, TrainedRun, save_controller, warm_start};
 
 /// Whose decisions a distillation fits.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -130,19 +131,20 @@ fn run_episode(setup: &Arc<MetaSetup>, teacher: &Controller<'_>, seed: u64, stre
 pub fn distill(setup: Arc<MetaSetup>, opts: &DistillOptions) -> Result<(MetaManifest, DistillFigures)> {
     setup.check_zones(&opts.zones)?;
     let started = Instant::now();
-    let head = match (&opts.warm_start, opts.teacher) {
-        (Some(dir), _) => Some(load(dir, &setup)?.1),
-        (None, Teacher::Lookahead(_)) => {
+    // The learner first: a warm start loads the controller once, and its lookahead teaches
+    // with exactly the head the fit starts from.
+    let envs = (0..opts.ppo.num_envs.max(1)).map(|_| MetaEnv::new(Arc::clone(&setup))).collect();
+    let mut ppo = Ppo::new(opts.ppo.clone(), envs);
+    let from = opts.warm_start.as_ref().map(|dir| warm_start(dir, &[], &setup, &mut ppo)).transpose()?;
+    let head = ActingHybrid::from_ppo(&ppo).expect("the meta environment has hybrid actions");
+    let teacher = match (opts.teacher, &from) {
+        (Teacher::Planner(cfg), _) => Controller::Planner(cfg),
+        (Teacher::Lookahead(cfg), Some(_)) => Controller::Lookahead(&head, cfg),
+        (Teacher::Lookahead(_), None) => {
             return Err(MetaError::Invalid(
                 "a lookahead teacher looks ahead with a trained controller: name it as the warm start".into(),
             ));
         }
-        (None, Teacher::Planner(_)) => None,
-    };
-    let teacher = match (opts.teacher, &head) {
-        (Teacher::Lookahead(cfg), Some(head)) => Controller::Lookahead(head, cfg),
-        (Teacher::Planner(cfg), _) => Controller::Planner(cfg),
-        (Teacher::Lookahead(_), None) => unreachable!("refused above"),
     };
     let mut episodes = Vec::new();
     for (zi, zone) in opts.zones.iter().enumerate() {
@@ -188,9 +190,6 @@ pub fn distill(setup: Arc<MetaSetup>, opts: &DistillOptions) -> Result<(MetaMani
     }
 
     let fit_started = Instant::now();
-    let envs = (0..opts.ppo.num_envs.max(1)).map(|_| MetaEnv::new(Arc::clone(&setup))).collect();
-    let mut ppo = Ppo::new(opts.ppo.clone(), envs);
-    let from = opts.warm_start.as_ref().map(|dir| warm_start(dir, &[], &setup, &mut ppo)).transpose()?;
     let losses = ppo.behaviour_clone(&obs, &actions, &masks, opts.epochs, opts.batch).map_err(MetaError::Invalid)?;
     let fitting_s = fit_started.elapsed().as_secs_f64();
     let fitted = |samples: u64, seconds: f64| TrainedRun {

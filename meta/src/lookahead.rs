@@ -65,7 +65,9 @@ pub struct Lookahead {
     scratch: MetaEnv,
     rng: EnvRng,
     obs: Vec<f32>,
+    /// The episode's allowed options at the decision, and the copy's during a rollout.
     mask: Vec<bool>,
+    roll_mask: Vec<bool>,
     candidate: Vec<f32>,
     best: Vec<f32>,
     /// Searches made this episode.
@@ -91,6 +93,7 @@ impl Lookahead {
             rng: EnvRng::seed_from_u64(cfg.seed),
             obs: vec![0.0; obs_dim],
             mask: vec![true; k],
+            roll_mask: vec![true; k],
             candidate: vec![0.0; act_dim],
             best: vec![0.0; act_dim],
             scratch,
@@ -117,7 +120,6 @@ impl Lookahead {
             if i == 0 {
                 self.candidate.copy_from_slice(act);
             } else {
-                env.option_mask(&mut self.mask);
                 self.head.sample(obs, &self.mask, &mut self.rng, &mut self.candidate);
             }
             let candidate = std::mem::take(&mut self.candidate);
@@ -159,8 +161,8 @@ impl Lookahead {
                 }
                 break;
             }
-            self.scratch.option_mask(&mut self.mask);
-            self.head.act(&obs, &self.mask, &mut act);
+            self.scratch.option_mask(&mut self.roll_mask);
+            self.head.act(&obs, &self.roll_mask, &mut act);
         }
         self.obs = obs;
         out
