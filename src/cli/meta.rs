@@ -893,40 +893,28 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
             }
             let trials = trials.unwrap_or(10_000);
             let zones = zones_or_all(zones, &setup.model.scenario.scenario);
-            if oracle_sit {
-                let cfg = plan.config()?;
-                let out = out_given.unwrap_or_else(|| meta.join("eval-oracle-sit"));
+            let searched = if oracle_sit {
+                let out = out_given.clone().unwrap_or_else(|| meta.join("eval-oracle-sit"));
+                Some((
+                    Controller::Checked(&head, plan.config()?),
+                    out,
+                    "the sit timed by the planner's copy".to_string(),
+                ))
+            } else {
+                lookahead.map(|k| {
+                    let cfg = LookaheadConfig { candidates: k as usize, searches: lookahead_searches, seed };
+                    let out = out_given.clone().unwrap_or_else(|| meta.join("eval-lookahead"));
+                    let what = format!("lookahead ({k} candidates, at most {lookahead_searches} searches an episode)");
+                    (Controller::Lookahead(&head, cfg), out, what)
+                })
+            };
+            if let Some((controller, out, what)) = searched {
                 let started = std::time::Instant::now();
-                let controller = Controller::Checked(&head, cfg);
                 let report = evaluate(&setup, controller, &zones, trials, batch, seed)?;
                 print!("{}", report.markdown());
                 report.write(&out)?;
                 println!(
-                    "\ncontroller with the sit timed by the planner's copy: {} trials in {:.1} s; report.md, \
-                     trials.csv and report.json written to {}",
-                    report.trials.len(),
-                    started.elapsed().as_secs_f64(),
-                    out.display()
-                );
-                let recs =
-                    save_worst(&setup, controller, &report, &zones, trials, seed, worst, false, &out.join("worst"))?;
-                super::replay::pages_beside(&recs);
-                worst_recorded(&recs, &out);
-                return Ok(());
-            }
-            if let Some(k) = lookahead {
-                let cfg = LookaheadConfig { candidates: k as usize, searches: lookahead_searches, seed };
-                let out = out_given.unwrap_or_else(|| meta.join("eval-lookahead"));
-                let started = std::time::Instant::now();
-                let controller = Controller::Lookahead(&head, cfg);
-                let report = evaluate(&setup, controller, &zones, trials, batch, seed)?;
-                print!("{}", report.markdown());
-                report.write(&out)?;
-                println!(
-                    "\ncontroller with lookahead ({} candidates, at most {} searches an episode): {} trials in \
-                     {:.1} s; report.md, trials.csv and report.json written to {}",
-                    cfg.candidates,
-                    cfg.searches,
+                    "\ncontroller with {what}: {} trials in {:.1} s; report.md, trials.csv and report.json written to {}",
                     report.trials.len(),
                     started.elapsed().as_secs_f64(),
                     out.display()
