@@ -215,7 +215,12 @@ fn meta_train_eval_and_the_main_job() {
     let text = ok(&repertoire(&[&args[..], &["--lookahead", "2", "--lookahead-searches", "1"]].concat()));
     assert!(text.contains("| front | 1 |") && text.contains("controller with lookahead (2 candidates"), "{text}");
     assert!(meta.join("eval-lookahead/report.md").exists());
-    for bad in [&["--lookahead", "0"][..], &["--lookahead", "2", "--oracle-sit"], &["--lookahead-searches", "2"]] {
+    for bad in [
+        &["--lookahead", "0"][..],
+        &["--lookahead", "2", "--oracle-sit"],
+        &["--lookahead-searches", "2"],
+        &["--lookahead-every-candidate"],
+    ] {
         let out = repertoire(&[&args[..], bad].concat());
         assert!(!out.status.success(), "{bad:?} was accepted");
     }

@@ -12,8 +12,15 @@
 //! on a tie) and searches again at the next decision, at most `searches` times an episode; after
 //! that the controller acts alone.
 //!
+//! A candidate whose copy the search can already tell is not played
+//! ([`LookaheadConfig::skip_known`]): one with the same effect as an earlier candidate of the
+//! same search (a skill without a target ignores the action's target values, so every draw of
+//! it is one copy), and, after a search that found no success, the controller's own decision
+//! at the next search, which is the rollout taken then from its second decision on (checked
+//! against the observation and the action). Neither can change what is taken.
+//!
 //! It never seats fewer than the controller: a trial the controller seats is one whose first
-//! search finds the controller's own choice succeeding. It reads the true state and pays
+//! search finds the controller's own choice succeeding. It reads the true state and pays up to
 //! `candidates` simulated episodes per search, so it is what the controller's skills and
 //! decisions allow with foresight (`repertoire meta eval --lookahead K`), not the product's
 //! learned controller; the decisions it changes are what expert iteration would teach it.
@@ -35,11 +42,17 @@ pub struct LookaheadConfig {
     pub searches: u32,
     /// Seed of the candidates drawn from the controller's policy.
     pub seed: u64,
+    /// Skip the candidates whose copy the search can already tell: one with the same effect as
+    /// an earlier candidate of the search (the same option, and the same target where the skill
+    /// takes one), and the controller's own when the last search played it out (the candidate
+    /// taken then, followed by the controller, is this decision onwards). The decisions are the
+    /// same either way; `false` simulates every candidate (for checking that).
+    pub skip_known: bool,
 }
 
 impl Default for LookaheadConfig {
     fn default() -> Self {
-        LookaheadConfig { candidates: 8, searches: 4, seed: 0 }
+        LookaheadConfig { candidates: 8, searches: 4, seed: 0, skip_known: true }
     }
 }
 
@@ -58,9 +71,53 @@ pub struct Rollout {
     pub score: f64,
 }
 
+/// A rollout's decisions as the copy played them, from `start` on: the action of each, the
+/// observation after it and its reward, and whether it ended in a fall.
+#[derive(Debug, Default)]
+struct Trace {
+    acts: Vec<f32>,
+    obs: Vec<f32>,
+    rewards: Vec<f32>,
+    fell: bool,
+    start: usize,
+}
+
+impl Trace {
+    fn clear(&mut self) {
+        self.acts.clear();
+        self.obs.clear();
+        self.rewards.clear();
+        self.fell = false;
+        self.start = 0;
+    }
+
+    /// The score of the rollout's decisions after `start` (what a rollout from the next decision
+    /// sums, in the same order), when the episode, seeing `obs`, is at that next decision and
+    /// the controller acts `act` there, as the copy did.
+    fn next_score(&self, obs: &[f32], act: &[f32]) -> Option<f64> {
+        let (o, a) = (obs.len(), act.len());
+        let next = self.start + 1;
+        if next >= self.rewards.len()
+            || self.obs[self.start * o..next * o] != *obs
+            || self.acts[next * a..(next + 1) * a] != *act
+        {
+            return None;
+        }
+        let mut score = 0.0;
+        for r in &self.rewards[next..] {
+            score += f64::from(*r);
+        }
+        if self.fell {
+            score -= 1.0;
+        }
+        Some(score)
+    }
+}
+
 /// The lookahead of one episode.
 pub struct Lookahead {
     cfg: LookaheadConfig,
+    setup: Arc<MetaSetup>,
     head: ActingHybrid,
     scratch: MetaEnv,
     rng: EnvRng,
@@ -70,10 +127,21 @@ pub struct Lookahead {
     roll_mask: Vec<bool>,
     candidate: Vec<f32>,
     best: Vec<f32>,
+    roll_act: Vec<f32>,
+    /// The rollout being played, the best of this search, and the one the episode follows
+    /// since the last search (valid while `following`).
+    trace: Trace,
+    best_trace: Trace,
+    followed: Trace,
+    following: bool,
+    /// The effects (option, and target bits for a skill that takes one) tried this search.
+    tried: Vec<(usize, Option<[u32; 2]>)>,
     /// Searches made this episode.
     pub searches: u32,
     /// Decisions simulated in the copy (its cost).
     pub simulated: u64,
+    /// Candidates whose copy the search could tell without playing it ([`LookaheadConfig::skip_known`]).
+    pub skipped: u64,
     /// Whether the last decision differs from the controller's own (a search took another).
     pub changed: bool,
     /// What the copy showed for the candidate taken at the last search that found a success;
@@ -85,10 +153,11 @@ impl Lookahead {
     /// The lookahead over `head` (cloned) in `setup`'s episodes.
     pub fn new(setup: Arc<MetaSetup>, head: &ActingHybrid, cfg: LookaheadConfig) -> Self {
         let k = setup.skills.len();
-        let scratch = MetaEnv::new(setup);
+        let scratch = MetaEnv::new(Arc::clone(&setup));
         let (obs_dim, act_dim) = (scratch.obs_dim(), scratch.act_dim());
         Lookahead {
             cfg,
+            setup,
             head: head.clone(),
             rng: EnvRng::seed_from_u64(cfg.seed),
             obs: vec![0.0; obs_dim],
@@ -96,9 +165,16 @@ impl Lookahead {
             roll_mask: vec![true; k],
             candidate: vec![0.0; act_dim],
             best: vec![0.0; act_dim],
+            roll_act: vec![0.0; act_dim],
             scratch,
+            trace: Trace::default(),
+            best_trace: Trace::default(),
+            followed: Trace::default(),
+            following: false,
+            tried: Vec::with_capacity(cfg.candidates),
             searches: 0,
             simulated: 0,
+            skipped: 0,
             changed: false,
             committed: None,
         }
@@ -110,17 +186,42 @@ impl Lookahead {
         self.head.act(obs, &self.mask, act);
         self.changed = false;
         if self.committed.is_some() || self.searches >= self.cfg.searches || self.cfg.candidates <= 1 {
+            self.following = false;
             return;
         }
         self.searches += 1;
         let now = env.snapshot();
         let mut best_score = f64::NEG_INFINITY;
         self.best.copy_from_slice(act);
+        self.tried.clear();
+        let mut have_best = false;
         for i in 0..self.cfg.candidates {
             if i == 0 {
                 self.candidate.copy_from_slice(act);
             } else {
                 self.head.sample(obs, &self.mask, &mut self.rng, &mut self.candidate);
+            }
+            if self.cfg.skip_known {
+                let effect = self.effect(&self.candidate);
+                if self.tried.contains(&effect) {
+                    // The same effect as an earlier candidate: the same copy, neither a success
+                    // nor better than the best (ties keep the earlier).
+                    self.skipped += 1;
+                    continue;
+                }
+                self.tried.push(effect);
+                if i == 0 && self.following {
+                    if let Some(score) = self.followed.next_score(obs, act) {
+                        // The last search's rollout, from here on: no success (it would have
+                        // been taken), and its score is known.
+                        self.skipped += 1;
+                        best_score = score;
+                        std::mem::swap(&mut self.best_trace, &mut self.followed);
+                        self.best_trace.start += 1;
+                        have_best = true;
+                        continue;
+                    }
+                }
             }
             let candidate = std::mem::take(&mut self.candidate);
             let out = self.rollout(&now, &candidate);
@@ -129,15 +230,29 @@ impl Lookahead {
                 self.changed = act != self.candidate.as_slice();
                 act.copy_from_slice(&self.candidate);
                 self.committed = Some(out);
+                self.following = false;
                 return;
             }
             if out.score > best_score {
                 best_score = out.score;
                 self.best.copy_from_slice(&self.candidate);
+                std::mem::swap(&mut self.best_trace, &mut self.trace);
+                have_best = true;
             }
         }
         self.changed = act != self.best.as_slice();
         act.copy_from_slice(&self.best);
+        std::mem::swap(&mut self.followed, &mut self.best_trace);
+        self.following = have_best;
+    }
+
+    /// What a decision does: its option, and its target where that skill takes one (a skill
+    /// without one ignores the action's target values).
+    fn effect(&self, a: &[f32]) -> (usize, Option<[u32; 2]>) {
+        let k = self.setup.skills.len();
+        let option = (a[0].round().max(0.0) as usize).min(k - 1);
+        let target = self.setup.skills[option].uses_target.then(|| [a[1].to_bits(), a[2].to_bits()]);
+        (option, target)
     }
 
     /// Plays `first` in the copy from the episode's snapshot `state`, then the controller by
@@ -146,12 +261,17 @@ impl Lookahead {
         self.scratch.restore(state).expect("a snapshot of an environment over the same setup");
         let mut out = Rollout { success: false, fell: false, decisions: 0, seconds: 0.0, score: 0.0 };
         let mut obs = std::mem::take(&mut self.obs);
-        let mut act = first.to_vec();
+        let mut act = std::mem::take(&mut self.roll_act);
+        act.copy_from_slice(first);
+        self.trace.clear();
         loop {
             let step = self.scratch.step(&act, &mut obs);
             self.simulated += 1;
             out.decisions += 1;
             out.score += f64::from(step.reward);
+            self.trace.acts.extend_from_slice(&act);
+            self.trace.obs.extend_from_slice(&obs);
+            self.trace.rewards.push(step.reward);
             if step.terminated || step.truncated {
                 out.success = step.terms[0] > 0.5;
                 out.fell = step.terms[2] > 0.5;
@@ -159,12 +279,14 @@ impl Lookahead {
                 if out.fell {
                     out.score -= 1.0;
                 }
+                self.trace.fell = out.fell;
                 break;
             }
             self.scratch.option_mask(&mut self.roll_mask);
             self.head.act(&obs, &self.roll_mask, &mut act);
         }
         self.obs = obs;
+        self.roll_act = act;
         out
     }
 }

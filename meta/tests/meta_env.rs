@@ -1044,10 +1044,10 @@ fn the_lookahead_plays_out_what_its_copy_showed_and_with_one_candidate_is_the_co
     let zones = vec!["front".to_string(), "behind".to_string()];
     // One candidate is the controller's own decision, never searched: the same trials.
     let alone = evaluate(&s, &head, &zones, 3, 3, 5).expect("controller");
-    let one = LookaheadConfig { candidates: 1, searches: 4, seed: 0 };
+    let one = LookaheadConfig { candidates: 1, searches: 4, seed: 0, skip_known: true };
     assert_eq!(evaluate(&s, Controller::Lookahead(&head, one), &zones, 3, 3, 5).expect("lookahead"), alone);
     // Reproducible for a seed, and every trial the controller seats it seats too.
-    let cfg = LookaheadConfig { candidates: 3, searches: 2, seed: 9 };
+    let cfg = LookaheadConfig { candidates: 3, searches: 2, seed: 9, skip_known: true };
     let a = evaluate(&s, Controller::Lookahead(&head, cfg), &zones, 3, 3, 5).expect("lookahead");
     assert_eq!(a, evaluate(&s, Controller::Lookahead(&head, cfg), &zones, 3, 3, 5).expect("again"));
     for (l, c) in a.trials.iter().zip(&alone.trials) {
@@ -1055,6 +1055,21 @@ fn the_lookahead_plays_out_what_its_copy_showed_and_with_one_candidate_is_the_co
         assert!(l.simulated >= 1 && c.simulated == 0, "the search's cost is counted: {l:?}");
     }
     assert!(a.markdown().contains("search cost:") && !alone.markdown().contains("search cost:"));
+    // Skipping the candidates a search can already tell (repeats of an earlier one's effect,
+    // the controller's own decision the last search played out) changes no decision, only the
+    // cost.
+    let wide = LookaheadConfig { candidates: 6, searches: 3, seed: 2, skip_known: true };
+    let skip = evaluate(&s, Controller::Lookahead(&head, wide), &zones, 3, 3, 5).expect("skipping");
+    let every = LookaheadConfig { skip_known: false, ..wide };
+    let mut all = evaluate(&s, Controller::Lookahead(&head, every), &zones, 3, 3, 5).expect("every candidate");
+    let (cost, full): (u64, u64) =
+        (skip.trials.iter().map(|t| t.simulated).sum(), all.trials.iter().map(|t| t.simulated).sum());
+    assert!(cost < full, "skipping saves simulation: {cost} of {full} decisions");
+    for (t, u) in skip.trials.iter().zip(all.trials.iter_mut()) {
+        assert!(t.simulated <= u.simulated, "trial {}: {} > {}", t.index, t.simulated, u.simulated);
+        u.simulated = t.simulated;
+    }
+    assert_eq!(skip, all, "the same trials either way");
     // The copy is exact: a candidate played in the episode, the controller after it, ends
     // exactly as its rollout said, for the controller's own first decision and a drawn one.
     for (i, drawn) in [(0u64, false), (1, true), (2, true)] {

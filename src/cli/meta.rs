@@ -422,6 +422,12 @@ pub enum MetaCommand {
         /// Most searches per episode with --lookahead (then the controller acts alone).
         #[arg(long, default_value_t = LookaheadConfig::default().searches, requires = "lookahead")]
         lookahead_searches: u32,
+        /// With --lookahead, simulate every candidate, also those whose copy a search can tell
+        /// without playing it (a repeat of an earlier candidate's effect, the controller's own
+        /// decision that the last search played out): the same decisions at more cost, to
+        /// check that.
+        #[arg(long, requires = "lookahead")]
+        lookahead_every_candidate: bool,
         #[command(flatten)]
         plan: PlannerArgs,
     },
@@ -507,9 +513,12 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
             let setup = setup(file.as_ref(), &library, &[], &[])?;
             sitting_only(&setup, "the planner and the lookahead, and so `meta distill`, handle")?;
             let teacher = match lookahead {
-                Some(k) => {
-                    Teacher::Lookahead(LookaheadConfig { candidates: k as usize, searches: lookahead_searches, seed })
-                }
+                Some(k) => Teacher::Lookahead(LookaheadConfig {
+                    candidates: k as usize,
+                    searches: lookahead_searches,
+                    seed,
+                    skip_known: true,
+                }),
                 None => Teacher::Planner(plan.config()?),
             };
             if let Some(lr) = learning_rate
@@ -801,6 +810,7 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
             veto_below,
             lookahead,
             lookahead_searches,
+            lookahead_every_candidate,
             plan,
         } => {
             if planner {
@@ -902,7 +912,12 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
                 ))
             } else {
                 lookahead.map(|k| {
-                    let cfg = LookaheadConfig { candidates: k as usize, searches: lookahead_searches, seed };
+                    let cfg = LookaheadConfig {
+                        candidates: k as usize,
+                        searches: lookahead_searches,
+                        seed,
+                        skip_known: !lookahead_every_candidate,
+                    };
                     let out = out_given.clone().unwrap_or_else(|| meta.join("eval-lookahead"));
                     let what = format!("lookahead ({k} candidates, at most {lookahead_searches} searches an episode)");
                     (Controller::Lookahead(&head, cfg), out, what)

@@ -85,7 +85,12 @@ pub fn run(args: RunArgs) -> Result<()> {
         let controller = match args.lookahead {
             Some(k) => Controller::Lookahead(
                 &head,
-                LookaheadConfig { candidates: k as usize, searches: args.lookahead_searches, seed: args.seed },
+                LookaheadConfig {
+                    candidates: k as usize,
+                    searches: args.lookahead_searches,
+                    seed: args.seed,
+                    skip_known: true,
+                },
             ),
             None => Controller::Learned(&head),
         };
