@@ -224,6 +224,13 @@ fn meta_train_eval_and_the_main_job() {
         let out = repertoire(&[&args[..], bad].concat());
         assert!(!out.status.success(), "{bad:?} was accepted");
     }
+    // Two evaluations of the same trials compare trial by trial; other trials are refused.
+    let (oracle, look, first) = (meta.join("eval-oracle-sit"), meta.join("eval-lookahead"), meta.join("eval"));
+    let text = ok(&repertoire(&["meta", "compare", oracle.to_str().unwrap(), look.to_str().unwrap()]));
+    assert!(text.contains("McNemar") && text.contains("| front | 1 |") && text.contains("| all | 1 |"), "{text}");
+    let out = repertoire(&["meta", "compare", first.to_str().unwrap(), look.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("not the same trials: 2 trials against 1"), "{err}");
     // Expert iteration needs the controller whose lookahead teaches.
     let out = repertoire(&["meta", "distill", "--library", lib_s, "--episodes", "1", "--lookahead", "2"]);
     let err = String::from_utf8_lossy(&out.stderr);

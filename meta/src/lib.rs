@@ -3,6 +3,7 @@
 //! latent low level ([`latent`]) as the alternative to the skills.
 
 pub mod bind;
+pub mod compare;
 pub mod deliver;
 pub mod distill;
 pub mod env;

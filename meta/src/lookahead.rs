@@ -52,7 +52,7 @@ pub struct LookaheadConfig {
 
 impl Default for LookaheadConfig {
     fn default() -> Self {
-        LookaheadConfig { candidates: 8, searches: 4, seed: 0, skip_known: true }
+        LookaheadConfig { candidates: 8, searches: 8, seed: 0, skip_known: true }
     }
 }
 

@@ -334,6 +334,18 @@ pub enum MetaCommand {
         #[command(flatten)]
         common: super::skill::TrainArgs,
     },
+    /// Compare two sitting evaluations of the same trials (the same scenario, seed and trial
+    /// count) trial by trial: per zone both success rates, the trials seated only by each,
+    /// the difference in points and McNemar's test on those (z and the exact p-value).
+    Compare {
+        /// Evaluation A: a `meta eval` folder, or its trials.csv.
+        a: PathBuf,
+        /// Evaluation B, the same trials.
+        b: PathBuf,
+        /// Also write the table here (Markdown).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
     /// Evaluate a trained meta-controller. Sitting: success and minimum distance per zone,
     /// transition matrices. Warehouse: phases completed per episode by start phase and a pick-up
     /// map over a start grid. Toss: catch rate and return over a grid of throw speeds (the strike
@@ -452,6 +464,17 @@ pub fn setup(file: Option<&PathBuf>, library: &Path, chain: &[String], skills: &
 pub fn run(cmd: MetaCommand) -> Result<()> {
     let command = super::invocation();
     match cmd {
+        MetaCommand::Compare { a, b, out } => {
+            use repertoire_meta::compare::{compare, read_trials, trials_file};
+            let names = [trials_file(&a).display().to_string(), trials_file(&b).display().to_string()];
+            let table = compare(names, &read_trials(&a)?, &read_trials(&b)?)?.markdown();
+            print!("{table}");
+            if let Some(out) = out {
+                repertoire_report::write_atomic(&out, table.as_bytes())?;
+                println!("\nwritten to {}", out.display());
+            }
+            Ok(())
+        }
         MetaCommand::Train { file, library, out, run, chain, skills, latent, hold } => {
             if run.iterations == Some(0) && run.warm_start.is_none() {
                 bail!(
