@@ -9,6 +9,7 @@
 //! index and must start alike (position and heading as `trials.csv` writes them); evaluations
 //! of different trials are refused, since their difference would not be paired.
 
+use std::collections::HashMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -142,16 +143,14 @@ pub fn compare(names: [String; 2], a: &[TrialRow], b: &[TrialRow]) -> Result<Com
     if a.len() != b.len() {
         return Err(refuse(format!("{} trials against {}", a.len(), b.len())));
     }
-    let key = |t: &TrialRow| (t.zone.clone(), t.index);
-    let mut sorted_b: Vec<&TrialRow> = b.iter().collect();
-    sorted_b.sort_by_key(|t| key(t));
+    let by_trial: HashMap<(&str, usize), &TrialRow> = b.iter().map(|t| ((t.zone.as_str(), t.index), t)).collect();
     let mut rows: Vec<Paired> = Vec::new();
-    let mut all = Paired { zone: "all".into(), trials: 0, seated: [0; 2], only: [0; 2], falls: [0; 2] };
+    let empty = |zone: &str| Paired { zone: zone.into(), trials: 0, seated: [0; 2], only: [0; 2], falls: [0; 2] };
+    let mut all = empty("all");
     for ta in a {
-        let tb = sorted_b
-            .binary_search_by_key(&key(ta), |t| key(t))
-            .map(|i| sorted_b[i])
-            .map_err(|_| refuse(format!("B has no trial {} in zone {}", ta.index, ta.zone)))?;
+        let tb = by_trial
+            .get(&(ta.zone.as_str(), ta.index))
+            .ok_or_else(|| refuse(format!("B has no trial {} in zone {}", ta.index, ta.zone)))?;
         if ta.start != tb.start {
             return Err(refuse(format!(
                 "trial {} of zone {} starts at ({}) in A and at ({}) in B",
@@ -164,7 +163,7 @@ pub fn compare(names: [String; 2], a: &[TrialRow], b: &[TrialRow]) -> Result<Com
         let zi = match rows.iter().position(|r| r.zone == ta.zone) {
             Some(i) => i,
             None => {
-                rows.push(Paired { zone: ta.zone.clone(), trials: 0, seated: [0; 2], only: [0; 2], falls: [0; 2] });
+                rows.push(empty(&ta.zone));
                 rows.len() - 1
             }
         };
