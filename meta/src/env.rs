@@ -205,6 +205,12 @@ pub struct MetaSetup {
 }
 
 impl MetaSetup {
+    /// The option a meta action names: its first value rounded to a skill index, clamped to
+    /// the skills (before the graph's mask, which [`MetaEnv::begin_decision`] applies).
+    pub fn option_of(&self, action: &[f32]) -> usize {
+        (action[0].round().max(0.0) as usize).min(self.skills.len() - 1)
+    }
+
     /// The scenario of `model` (a Sit, Warehouse or Toss task) with the skills of its graph
     /// loaded from `library`. Skills the library lacks are named in the error.
     pub fn new(model: Arc<WorldModel>, library: &Path, graph: SkillGraph) -> Result<Self> {
@@ -692,7 +698,7 @@ impl MetaEnv {
     /// the controller's episodes, [`crate::refine`]).
     pub fn begin_decision(&mut self, action: &[f32]) -> usize {
         let k = self.setup.skills.len();
-        let option = (action[0].round().max(0.0) as usize).min(k - 1);
+        let option = self.setup.option_of(action);
         let mut mask = vec![false; k];
         self.allowed_now(&mut mask);
         // The policy masks forbidden options; a forbidden choice from elsewhere keeps the

@@ -194,7 +194,6 @@ impl Lookahead {
         let mut best_score = f64::NEG_INFINITY;
         self.best.copy_from_slice(act);
         self.tried.clear();
-        let mut have_best = false;
         for i in 0..self.cfg.candidates {
             if i == 0 {
                 self.candidate.copy_from_slice(act);
@@ -218,7 +217,6 @@ impl Lookahead {
                         best_score = score;
                         std::mem::swap(&mut self.best_trace, &mut self.followed);
                         self.best_trace.start += 1;
-                        have_best = true;
                         continue;
                     }
                 }
@@ -237,20 +235,20 @@ impl Lookahead {
                 best_score = out.score;
                 self.best.copy_from_slice(&self.candidate);
                 std::mem::swap(&mut self.best_trace, &mut self.trace);
-                have_best = true;
             }
         }
         self.changed = act != self.best.as_slice();
         act.copy_from_slice(&self.best);
+        // The controller's own candidate is never a repeat, so it was played or known: the best
+        // has a trace, which the episode now follows.
         std::mem::swap(&mut self.followed, &mut self.best_trace);
-        self.following = have_best;
+        self.following = true;
     }
 
     /// What a decision does: its option, and its target where that skill takes one (a skill
     /// without one ignores the action's target values).
     fn effect(&self, a: &[f32]) -> (usize, Option<[u32; 2]>) {
-        let k = self.setup.skills.len();
-        let option = (a[0].round().max(0.0) as usize).min(k - 1);
+        let option = self.setup.option_of(a);
         let target = self.setup.skills[option].uses_target.then(|| [a[1].to_bits(), a[2].to_bits()]);
         (option, target)
     }
