@@ -540,7 +540,7 @@ pub fn run(cmd: MetaCommand) -> Result<()> {
                     candidates: k as usize,
                     searches: lookahead_searches,
                     seed,
-                    skip_known: true,
+                    ..LookaheadConfig::default()
                 }),
                 None => Teacher::Planner(plan.config()?),
             };

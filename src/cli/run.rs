@@ -89,7 +89,7 @@ pub fn run(args: RunArgs) -> Result<()> {
                     candidates: k as usize,
                     searches: args.lookahead_searches,
                     seed: args.seed,
-                    skip_known: true,
+                    ..LookaheadConfig::default()
                 },
             ),
             None => Controller::Learned(&head),
