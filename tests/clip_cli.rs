@@ -6,7 +6,7 @@ use common::{temp_dir, write};
 use std::path::Path;
 use std::process::Command;
 
-const MOCAP: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/mocap");
+const MOCAP: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/mocap");
 
 fn repertoire(dir: &Path, args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_repertoire")).current_dir(dir).args(args).output().expect("runs")

@@ -1,7 +1,7 @@
 //! Reference motion clips: mocap retargeted onto a MuJoCo body, keyframe clips, and the
 //! operations skills need.
 //!
-//! - [`map`]: retarget maps (RON), shipped for every skeleton in `../shared/mocap`, and
+//! - [`map`]: retarget maps (RON), shipped for every skeleton in the repository's `mocap/`, and
 //!   detection of the one that fits a file.
 //! - [`retarget()`]: re-proportion the source key points to the body, then damped-least-squares
 //!   IK with MuJoCo Jacobians, warm-started, limits respected, feet on (not under) the floor.

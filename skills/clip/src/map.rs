@@ -1,6 +1,6 @@
 //! Retarget maps (RON): which source joint drives which point of the target body, plus the
 //! source's up axis, unit, scale and heading corrections. Maps for every skeleton in
-//! `../shared/mocap` ship in `skills/clip/maps/` and are compiled in; [`detect`] picks the one
+//! `mocap/` ship in `skills/clip/maps/` and are compiled in; [`detect`] picks the one
 //! that fits a parsed skeleton.
 
 use crate::error::{ClipError, Result, read_text};

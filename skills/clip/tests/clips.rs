@@ -1,4 +1,4 @@
-//! Every file in ../shared/mocap imports and retargets onto the built-in humanoid; clip
+//! Every file in the repository's mocap/ imports and retargets onto the built-in humanoid; clip
 //! operations, files, keyframes and bad inputs.
 
 use repertoire_clip::map::LoadedMap;
@@ -8,7 +8,7 @@ use repertoire_clip::{
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
-const MOCAP: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/mocap");
+const MOCAP: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../mocap");
 const KEYFRAMES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/keyframes");
 /// Retarget at most this many seconds of each file (keeps the test fast in the dev profile).
 const MAX_SECONDS: f64 = 4.0;
@@ -18,7 +18,7 @@ fn body() -> &'static ClipBody {
     BODY.get_or_init(|| ClipBody::humanoid().expect("built-in humanoid"))
 }
 
-fn shared(rel: &str) -> PathBuf {
+fn in_mocap(rel: &str) -> PathBuf {
     Path::new(MOCAP).join(rel)
 }
 
@@ -29,9 +29,9 @@ fn temp_dir(test: &str) -> PathBuf {
     dir
 }
 
-/// Imports and retargets the first `MAX_SECONDS` of a shared file.
+/// Imports and retargets the first `MAX_SECONDS` of a file in mocap/.
 fn retargeted(rel: &str) -> Retargeted {
-    let path = shared(rel);
+    let path = in_mocap(rel);
     let source = ClipSource::from_path(&path, None).expect("known type");
     let (mut mocap, map) = import(&source, None).unwrap_or_else(|e| panic!("{rel}: {e}"));
     let keep = ((MAX_SECONDS / mocap.motion.frame_time).round() as usize).max(2);
@@ -44,9 +44,9 @@ fn retargeted(rel: &str) -> Retargeted {
     retarget(&mocap, &path, &map, body(), &RetargetOptions::default()).unwrap_or_else(|e| panic!("{rel}: {e}"))
 }
 
-fn all_shared_files() -> Vec<String> {
+fn all_mocap_files() -> Vec<String> {
     let mut out = Vec::new();
-    for dir in std::fs::read_dir(MOCAP).expect("../shared/mocap exists") {
+    for dir in std::fs::read_dir(MOCAP).expect("the repository's mocap/ folder exists") {
         let dir = dir.unwrap().path();
         if !dir.is_dir() {
             continue;
@@ -64,9 +64,9 @@ fn all_shared_files() -> Vec<String> {
 }
 
 #[test]
-fn every_shared_file_retargets_onto_the_humanoid() {
-    let files = all_shared_files();
-    assert!(files.len() >= 15, "expected the 15 motion files of ../shared/mocap, found {files:?}");
+fn every_mocap_file_retargets_onto_the_humanoid() {
+    let files = all_mocap_files();
+    assert!(files.len() >= 15, "expected the 15 motion files of mocap/, found {files:?}");
     let mut frames = 0;
     let mut seconds = 0.0;
     for rel in &files {
@@ -233,7 +233,7 @@ fn nan_frames_short_clips_and_width_mismatches_are_rejected() {
 
     // A BVH with a NaN channel value: the parser names the frame.
     let bvh = dir.join("nan.bvh");
-    let text = std::fs::read_to_string(shared("cmu-subject16-30fps/16_15_walk.bvh")).unwrap();
+    let text = std::fs::read_to_string(in_mocap("cmu-subject16-30fps/16_15_walk.bvh")).unwrap();
     let motion = text.find("Frame Time").unwrap();
     let lines: Vec<&str> = text[motion..].lines().collect();
     let bad_line = lines[3];
@@ -249,7 +249,7 @@ fn nan_frames_short_clips_and_width_mismatches_are_rejected() {
 fn maps_naming_missing_joints_or_bodies_are_rejected_with_file_and_line() {
     let dir = temp_dir("bad-maps");
     let good = repertoire_clip::map::SHIPPED.iter().find(|(n, _)| n.starts_with("cmu-subject16")).unwrap().1;
-    let path = shared("cmu-subject16-30fps/16_15_walk.bvh");
+    let path = in_mocap("cmu-subject16-30fps/16_15_walk.bvh");
     let source = ClipSource::from_path(&path, None).unwrap();
 
     let bad = dir.join("bad-joint.ron");
@@ -266,7 +266,7 @@ fn maps_naming_missing_joints_or_bodies_are_rejected_with_file_and_line() {
     assert!(msg.contains("bad-body.ron") && msg.contains(&format!(":{line}:")) && msg.contains("`left_calf`"), "{msg}");
 
     // The default map is detected from the joint names; a skeleton no map fits is an error.
-    let dm = ClipSource::from_path(&shared("deepmimic-format/pybullet_walker_walk_forward.txt"), None).unwrap();
+    let dm = ClipSource::from_path(&in_mocap("deepmimic-format/pybullet_walker_walk_forward.txt"), None).unwrap();
     assert_eq!(import(&dm, None).unwrap().1.map.name, "deepmimic-humanoid3d");
     let msg = import(&source, Some(repertoire_clip::map::shipped().unwrap().remove(5))).unwrap_err().to_string();
     assert!(msg.contains("DeepMimic"), "{msg}");

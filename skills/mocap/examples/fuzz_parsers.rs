@@ -4,7 +4,7 @@
 //! ```text
 //! cargo run --release -p repertoire-mocap --example fuzz_parsers -- 1000000 [seed]
 //! ```
-//! Seeds are small cuts of the real clips in shared/mocap.
+//! Seeds are small cuts of the real clips in the repository's mocap/.
 
 use repertoire_mocap::{
     AmcOptions, Asf, BvhOptions, DeepMimicLayout, parse_amc, parse_asf, parse_bvh, parse_deepmimic,
@@ -12,7 +12,7 @@ use repertoire_mocap::{
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::time::Instant;
 
-const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/mocap");
+const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../mocap");
 
 /// SplitMix64: tiny, fast, deterministic.
 struct Rng(u64);

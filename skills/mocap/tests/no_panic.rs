@@ -6,7 +6,7 @@ use repertoire_mocap::{
 };
 use std::sync::OnceLock;
 
-const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/mocap");
+const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../mocap");
 
 fn read(rel: &str) -> Vec<u8> {
     std::fs::read(format!("{DATA}/{rel}")).unwrap()

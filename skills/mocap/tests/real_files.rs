@@ -1,4 +1,4 @@
-//! Every clip in shared/mocap parses with the expected size, rate and skeleton, and the
+//! Every clip in the repository's mocap/ parses with the expected size, rate and skeleton, and the
 //! motion makes physical sense (height, heading).
 
 use repertoire_mocap::{
@@ -7,7 +7,7 @@ use repertoire_mocap::{
 };
 use std::path::PathBuf;
 
-const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/mocap");
+const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../mocap");
 
 fn data(rel: &str) -> PathBuf {
     PathBuf::from(DATA).join(rel)

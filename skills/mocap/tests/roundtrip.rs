@@ -7,7 +7,7 @@ use repertoire_mocap::{
 };
 use std::path::PathBuf;
 
-const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/mocap");
+const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../mocap");
 
 const BVH_FILES: [&str; 9] = [
     "cmu-subject16-30fps/16_11_walk_veer_left.bvh",
