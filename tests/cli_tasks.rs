@@ -84,6 +84,7 @@ fn report_gathers_warehouse_and_toss_evaluations() {
         delivered: false,
         dropped: !caught,
         fell: false,
+        fall_cause: None,
         episode_return: 0.0,
     };
     let toss = TossReport {

@@ -97,6 +97,7 @@ fn a_body_placed_seated_on_the_chair_reports_pelvis_seat_contact() {
     let c = world.contacts();
     assert!(c.pelvis_on_prop(chair), "pelvis rests on the seat after 1 s");
     assert!(!c.fallen, "sitting is not falling");
+    assert!(!world.has_fallen(), "sitting is not falling by the fall test: {:?}", world.fall());
     assert!(touching > 30, "contact held for {touching} of 60 ticks");
 
     // The same pose a metre away from the chair: no seat contact, and the body drops.

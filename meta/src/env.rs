@@ -788,7 +788,7 @@ impl MetaEnv {
         let mut terms = [0.0; MAX_TERMS];
         if done {
             terms[0] = f32::from(u8::from(success));
-            terms[2] = f32::from(u8::from(fell));
+            terms[2] = fall_term(fell, &self.world);
             terms[3] = self.world.time() as f32;
             terms[4] = self.switches as f32;
             self.task.terms(&mut terms);
@@ -996,6 +996,20 @@ pub fn check_zones(model: &WorldModel, zones: &[String]) -> Result<()> {
         None => Ok(()),
     }
 }
+
+/// The episode figure `fell` (`terms[2]`): 0 without a fall, else the fall test's cause code
+/// ([`repertoire_scenes::FallCause::code`], 1–4), or [`DIVERGED`] for a world whose state
+/// stopped being finite. Read it as a flag with `> 0.5`.
+pub fn fall_term(fell: bool, world: &World) -> f32 {
+    match (fell, world.fall()) {
+        (false, _) => 0.0,
+        (true, Some(f)) => f32::from(f.cause.code()),
+        (true, None) => DIVERGED,
+    }
+}
+
+/// `fell`'s value for a world whose state stopped being finite (no fall the test could name).
+pub const DIVERGED: f32 = 9.0;
 
 #[cfg(test)]
 mod detour_tests {

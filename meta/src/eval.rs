@@ -13,8 +13,8 @@ use repertoire_learn::env::{Env, EnvRng};
 use repertoire_report::{StartPoint, success_map, transition_matrix};
 use serde::{Deserialize, Serialize};
 
-use repertoire_scenes::Recording;
 use repertoire_scenes::world::PropPlacement;
+use repertoire_scenes::{FallCause, Recording};
 
 use crate::env::{MetaEnv, MetaSetup};
 use crate::error::{MetaError, Result};
@@ -136,6 +136,9 @@ pub struct Trial {
     pub success: bool,
     /// Ended by a fall.
     pub fell: bool,
+    /// Why, by the fall test ([`repertoire_scenes::FallCause::name`], or `diverged`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fall_cause: Option<String>,
     /// Smallest pelvis-to-seat distance (m).
     pub min_distance: f64,
     /// Seconds simulated.
@@ -377,6 +380,7 @@ impl Trial {
             side: if local_y >= 0.0 { "left".into() } else { "right".into() },
             success: terms[0] > 0.5,
             fell: terms[2] > 0.5,
+            fall_cause: fall_cause(terms[2]),
             min_distance: f64::from(terms[1]),
             seconds: f64::from(terms[3]),
             skills,
@@ -384,6 +388,25 @@ impl Trial {
             simulated: 0,
         }
     }
+}
+
+/// The cause named by an episode's `fell` figure (see [`crate::env::fall_term`]).
+pub fn fall_cause(fell: f32) -> Option<String> {
+    (fell > 0.5).then(|| FallCause::from_code(fell.round() as u8).map_or("diverged", FallCause::name).to_string())
+}
+
+/// "floor 12, pelvis low 3" over the trials that fell, causes in code order; `None` without falls.
+pub fn fall_causes<'a>(causes: impl Iterator<Item = Option<&'a str>>) -> Option<String> {
+    let mut counts: Vec<(String, usize)> = Vec::new();
+    for c in causes.flatten() {
+        match counts.iter_mut().find(|(n, _)| n == c) {
+            Some((_, k)) => *k += 1,
+            None => counts.push((c.to_string(), 1)),
+        }
+    }
+    let order = |n: &str| FallCause::ALL.iter().position(|c| c.name() == n).unwrap_or(FallCause::ALL.len());
+    counts.sort_by_key(|(n, _)| order(n));
+    (!counts.is_empty()).then(|| counts.iter().map(|(n, k)| format!("{n} {k}")).collect::<Vec<_>>().join(", "))
 }
 
 fn row(zone: &str, trials: &[&Trial]) -> ZoneRow {
@@ -477,6 +500,9 @@ impl MetaReport {
                 r.min_distance_sd
             );
         }
+        if let Some(causes) = fall_causes(self.trials.iter().map(|t| t.fall_cause.as_deref())) {
+            let _ = writeln!(s, "\nfalls by cause (the shared fall test; all zones): {causes}");
+        }
         let searched: Vec<u64> = self.trials.iter().map(|t| t.simulated).collect();
         if searched.iter().any(|&n| n > 0) {
             let mean = searched.iter().sum::<u64>() as f64 / searched.len() as f64;
@@ -519,11 +545,12 @@ impl MetaReport {
     pub fn write(&self, dir: &Path) -> Result<()> {
         let err = |e: std::io::Error| MetaError::Invalid(format!("{}: {e}", dir.display()));
         std::fs::create_dir_all(dir).map_err(err)?;
-        let mut csv = String::from("index,zone,x,y,yaw,side,success,fell,min_distance,seconds,skills,touched\n");
+        let mut csv =
+            String::from("index,zone,x,y,yaw,side,success,fell,min_distance,seconds,skills,touched,fall_cause\n");
         for t in &self.trials {
             let _ = writeln!(
                 csv,
-                "{},{},{:.4},{:.4},{:.4},{},{},{},{:.4},{:.2},{},{}",
+                "{},{},{:.4},{:.4},{:.4},{},{},{},{:.4},{:.2},{},{},{}",
                 t.index,
                 t.zone,
                 t.start.0,
@@ -535,7 +562,8 @@ impl MetaReport {
                 t.min_distance,
                 t.seconds,
                 t.skills.join(">"),
-                t.touched.as_deref().unwrap_or("")
+                t.touched.as_deref().unwrap_or(""),
+                t.fall_cause.as_deref().unwrap_or("")
             );
         }
         let json = serde_json_string(self);
@@ -586,12 +614,24 @@ mod tests {
             side: "left".into(),
             success,
             fell,
+            fall_cause: fell.then(|| "floor".to_string()),
             min_distance,
             seconds: 5.0,
             skills: skills.iter().map(|s| s.to_string()).collect(),
             touched: None,
             simulated: 0,
         }
+    }
+
+    #[test]
+    fn falls_are_counted_by_cause_in_the_fall_tests_order() {
+        assert_eq!(fall_cause(0.0), None);
+        assert_eq!(fall_cause(1.0).as_deref(), Some("floor"));
+        assert_eq!(fall_cause(4.0).as_deref(), Some("upside down"));
+        assert_eq!(fall_cause(crate::env::DIVERGED).as_deref(), Some("diverged"));
+        let causes = [Some("diverged"), None, Some("pelvis low"), Some("floor"), Some("pelvis low")];
+        assert_eq!(fall_causes(causes.into_iter()).as_deref(), Some("floor 1, pelvis low 2, diverged 1"));
+        assert_eq!(fall_causes([None, None].into_iter()), None);
     }
 
     #[test]

@@ -243,7 +243,7 @@ impl Task for LatentTask {
         let mut terms = [0.0; MAX_TERMS];
         if ended || truncated {
             terms[0] = f32::from(u8::from(success));
-            terms[2] = f32::from(u8::from(fell));
+            terms[2] = crate::env::fall_term(fell, world);
             // Seconds since the episode's start, counted (a diverged world's clock is not read).
             terms[3] = (f64::from(self.ticks) * dt) as f32;
             self.state.terms(&mut terms);

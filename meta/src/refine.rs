@@ -271,7 +271,7 @@ impl Env for RefineEnv {
         reward += self.setup.task_weight * out.reward;
         terms[5] = self.setup.task_weight * out.reward;
         let out = if out.terminated || out.truncated {
-            terms[7] = out.terms[2];
+            terms[7] = f32::from(u8::from(out.terms[2] > 0.5));
             out
         } else {
             let before = reward;

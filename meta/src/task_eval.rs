@@ -28,6 +28,7 @@ use crate::task::{EpisodeOverride, TaskSpec, TaskState};
 struct Ended {
     task: TaskState,
     fell: bool,
+    fall_cause: Option<String>,
     seconds: f64,
     episode_return: f64,
 }
@@ -75,6 +76,7 @@ fn run_recorded(
             let ended = Ended {
                 task: env.task().clone(),
                 fell: out.terms[2] > 0.5,
+                fall_cause: crate::eval::fall_cause(out.terms[2]),
                 seconds: f64::from(out.terms[3]),
                 episode_return,
             };
@@ -130,6 +132,9 @@ pub struct WarehouseTrial {
     pub phases: u32,
     /// Ended by a fall.
     pub fell: bool,
+    /// Why, by the fall test.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fall_cause: Option<String>,
     /// Ended by the box touching the floor.
     pub dropped: bool,
     /// Seconds simulated.
@@ -210,6 +215,7 @@ pub fn evaluate_warehouse(
                 start_phase: j.start_phase.label().to_string(),
                 phases: j.completed,
                 fell: e.fell,
+                fall_cause: e.fall_cause.clone(),
                 dropped: j.dropped,
                 seconds: e.seconds,
                 episode_return: e.episode_return,
@@ -360,6 +366,9 @@ impl WarehouseReport {
                 100.0 * r.drop_rate
             );
         }
+        if let Some(causes) = crate::eval::fall_causes(self.trials.iter().map(|t| t.fall_cause.as_deref())) {
+            let _ = writeln!(s, "\nfalls by cause (the shared fall test): {causes}");
+        }
         if let Some(p) = &self.pickup {
             for (what, counts) in [
                 ("pick-up success (GOTO + LIFT from a GOTO start)", &p.successes),
@@ -409,12 +418,19 @@ impl WarehouseReport {
     /// Writes `report.md`, `trials.csv`, `report.json` and, with a pick-up map,
     /// `pickup.png`/`.svg` and `goto.png`/`.svg` into `dir`.
     pub fn write(&self, dir: &Path) -> Result<()> {
-        let mut csv = String::from("index,start_phase,phases,fell,dropped,seconds,return\n");
+        let mut csv = String::from("index,start_phase,phases,fell,dropped,seconds,return,fall_cause\n");
         for t in &self.trials {
             let _ = writeln!(
                 csv,
-                "{},{},{},{},{},{:.2},{:.3}",
-                t.index, t.start_phase, t.phases, t.fell, t.dropped, t.seconds, t.episode_return
+                "{},{},{},{},{},{:.2},{:.3},{}",
+                t.index,
+                t.start_phase,
+                t.phases,
+                t.fell,
+                t.dropped,
+                t.seconds,
+                t.episode_return,
+                t.fall_cause.as_deref().unwrap_or("")
             );
         }
         let json = serde_json::to_string_pretty(self).expect("a report is plain data");
@@ -476,6 +492,9 @@ pub struct TossTrial {
     pub dropped: bool,
     /// Ended by a fall.
     pub fell: bool,
+    /// Why, by the fall test.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fall_cause: Option<String>,
     /// Sum of rewards.
     pub episode_return: f64,
 }
@@ -533,6 +552,7 @@ pub fn evaluate_toss(
                 delivered: j.delivered(),
                 dropped: j.dropped,
                 fell: e.fell,
+                fall_cause: e.fall_cause.clone(),
                 episode_return: e.episode_return,
             }
         })
@@ -610,6 +630,9 @@ impl TossReport {
             100.0 * Self::rate(&all, |t| t.dropped),
             100.0 * Self::rate(&all, |t| t.fell)
         );
+        if let Some(causes) = crate::eval::fall_causes(all.iter().map(|t| t.fall_cause.as_deref())) {
+            let _ = writeln!(s, "\nfalls by cause (the shared fall test): {causes}");
+        }
         for (title, value) in [("catch rate", true), ("mean return", false)] {
             let _ = writeln!(
                 s,
@@ -656,12 +679,20 @@ impl TossReport {
 
     /// Writes `report.md`, `throws.csv`, `report.json` and `strike_zone.png`/`.svg` into `dir`.
     pub fn write(&self, dir: &Path) -> Result<()> {
-        let mut csv = String::from("index,v_x,lateral,caught,delivered,dropped,fell,return\n");
+        let mut csv = String::from("index,v_x,lateral,caught,delivered,dropped,fell,return,fall_cause\n");
         for t in &self.throws {
             let _ = writeln!(
                 csv,
-                "{},{:.3},{:.3},{},{},{},{},{:.3}",
-                t.index, t.v_x, t.lateral, t.caught, t.delivered, t.dropped, t.fell, t.episode_return
+                "{},{:.3},{:.3},{},{},{},{},{:.3},{}",
+                t.index,
+                t.v_x,
+                t.lateral,
+                t.caught,
+                t.delivered,
+                t.dropped,
+                t.fell,
+                t.episode_return,
+                t.fall_cause.as_deref().unwrap_or("")
             );
         }
         let json = serde_json::to_string_pretty(self).expect("a report is plain data");

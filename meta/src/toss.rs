@@ -81,7 +81,7 @@ pub struct TossFacts {
     pub hands_on_ball: [bool; 2],
     /// The ball touches the floor.
     pub ball_on_floor: bool,
-    /// A body part other than the feet touches the floor.
+    /// The fall test counted a fall ([`World::has_fallen`]).
     pub fallen: bool,
     /// The ball is inside the bucket (centre within its radius, below its rim).
     pub in_bucket: bool,
@@ -100,7 +100,7 @@ impl TossFacts {
         TossFacts {
             hands_on_ball: contacts.hands_on_prop(spec.ball),
             ball_on_floor: contacts.prop_on_floor(spec.ball),
-            fallen: contacts.fallen,
+            fallen: world.has_fallen(),
             in_bucket: to_bucket_m < radius && ball[2] < bucket[2] + height,
             to_bucket_m,
         }

@@ -134,7 +134,7 @@ pub struct WarehouseFacts {
     pub target_contacts: usize,
     /// The box touches the floor.
     pub box_on_floor: bool,
-    /// A body part other than the feet touches the floor.
+    /// The fall test counted a fall ([`World::has_fallen`]).
     pub fallen: bool,
 }
 
@@ -156,7 +156,7 @@ impl WarehouseFacts {
             source_contacts: world.prop_contact_count(spec.box_prop, spec.pedestals[source]),
             target_contacts: world.prop_contact_count(spec.box_prop, spec.pedestals[target]),
             box_on_floor: contacts.prop_on_floor(spec.box_prop),
-            fallen: contacts.fallen,
+            fallen: world.has_fallen(),
         }
     }
 

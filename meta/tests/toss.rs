@@ -180,7 +180,7 @@ fn the_meta_environment_throws_a_ball_at_every_reset() {
             out = env.step(&[0.0, 0.0, 0.0], &mut obs);
         }
         // Without a catch skill the ball ends on the floor (or the walker falls).
-        assert!(out.terminated && (out.terms[5] == 1.0 || out.terms[2] == 1.0), "{:?}", out.terms);
+        assert!(out.terminated && (out.terms[5] == 1.0 || out.terms[2] > 0.5), "{:?}", out.terms);
         assert_eq!(out.terms[0], 0.0, "no ball in the bucket");
     }
 }

@@ -9,6 +9,7 @@ pub mod bench;
 pub mod body;
 pub mod compose;
 pub mod error;
+pub mod fall;
 pub mod math;
 pub mod obs;
 pub mod param;
@@ -20,6 +21,7 @@ pub mod world;
 
 pub use body::{BodyDef, BodyIndex, BodyMap};
 pub use error::{Location, Result, SceneError};
+pub use fall::{Fall, FallCause, FallRule};
 pub use obs::{Feature, ObservationLayout};
 pub use param::Param;
 pub use record::{Annotation, RecordOptions, Recorder, Recording};

@@ -8,11 +8,13 @@
 //! ```text
 //! b"REPREC\x01\n"  u32 header length  header (JSON)
 //! time f64[n]  qpos f64[n·nq]  poses f32[n·bodies·7]  ghost f32[n·character·7] (empty without one)
-//! skill i32[n]  phase f32[n]  terms f32[n·terms]  contacts u64[n·5]  fallen u8[n]
+//! skill i32[n]  phase f32[n]  terms f32[n·terms]  contacts u64[n·5]  fall u8[n]
 //! FNV-1a 64 of everything before it
 //! ```
 //!
-//! all little-endian; a pose is `x y z qw qx qy qz` in the world frame. A 20 s rollout of the
+//! all little-endian; a pose is `x y z qw qx qy qz` in the world frame; `fall` is the fall
+//! test's verdict so far ([`crate::fall`]): 0 none, else [`FallCause::code`] (files written
+//! before the shared fall test hold 1 wherever a part not allowed on the floor touched it). A 20 s rollout of the
 //! built-in humanoid at 60 Hz with a ghost is about 1.5 MB.
 
 use std::path::Path;
@@ -22,6 +24,7 @@ use mujoco_rs::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Result, SceneError};
+use crate::fall::FallCause;
 use crate::world::{Contacts, World, WorldModel};
 
 /// The file's first bytes.
@@ -175,8 +178,10 @@ pub struct Recording {
     pub phase: Vec<f32>,
     /// Terms, `frames × terms`.
     pub terms: Vec<f32>,
-    /// Contacts per frame.
+    /// Contacts per frame (`fallen`: the fall test's verdict so far, as in `fall`).
     pub contacts: Vec<Contacts>,
+    /// The fall test's verdict per frame: 0 none, else the cause's [`FallCause::code`].
+    pub fall: Vec<u8>,
 }
 
 /// What a rollout says about one frame besides the world's state.
@@ -314,6 +319,7 @@ impl Recorder {
             phase: Vec::with_capacity(n),
             terms: Vec::with_capacity(n * header.terms.len()),
             contacts: Vec::with_capacity(n),
+            fall: Vec::with_capacity(n),
             header,
         };
         let ghost_data = options.ghost.as_ref().map(|_| MjData::new(Arc::clone(model.mj_model())));
@@ -377,7 +383,9 @@ impl Recorder {
         r.phase.push(a.phase as f32);
         let nt = r.header.terms.len();
         r.terms.extend((0..nt).map(|k| a.terms.get(k).copied().filter(|v| v.is_finite()).unwrap_or(0.0)));
-        r.contacts.push(world.contacts());
+        let fall = world.fall();
+        r.contacts.push(Contacts { fallen: fall.is_some(), ..world.contacts() });
+        r.fall.push(fall.map_or(0, |f| f.cause.code()));
         r.header.frames += 1;
     }
 
@@ -404,6 +412,37 @@ impl Recording {
     /// Seconds per frame.
     pub fn dt(&self) -> f64 {
         1.0 / self.header.control_hz
+    }
+
+    /// Frame `f`'s fall verdict: the cause once the fall test counted one.
+    pub fn fall_at(&self, f: usize) -> Option<FallCause> {
+        FallCause::from_code(self.fall[f])
+    }
+
+    /// The first frame the fall test counted a fall at, with its cause.
+    pub fn first_fall(&self) -> Option<(usize, FallCause)> {
+        self.fall.iter().enumerate().find_map(|(f, &c)| FallCause::from_code(c).map(|cause| (f, cause)))
+    }
+
+    /// The frames `from..` as a recording of their own (a fixture cut from a long episode).
+    pub fn frames_from(&self, from: usize) -> Recording {
+        let from = from.min(self.frames());
+        let h = &self.header;
+        let n = self.frames() - from;
+        let cut = |v: usize| from * v..;
+        let nb = h.bodies.len();
+        Recording {
+            header: Header { frames: n, ..h.clone() },
+            time: self.time[cut(1)].to_vec(),
+            qpos: self.qpos[cut(h.nq)].to_vec(),
+            poses: self.poses[cut(nb * POSE)].to_vec(),
+            ghost: self.ghost[cut(h.ghost_bodies() * POSE)].to_vec(),
+            skill: self.skill[cut(1)].to_vec(),
+            phase: self.phase[cut(1)].to_vec(),
+            terms: self.terms[cut(h.terms.len())].to_vec(),
+            contacts: self.contacts[cut(1)].to_vec(),
+            fall: self.fall[cut(1)].to_vec(),
+        }
     }
 
     /// Frame `f`'s qpos.
@@ -439,7 +478,7 @@ impl Recording {
                 out.extend_from_slice(&w.to_le_bytes());
             }
         }
-        out.extend(self.contacts.iter().map(|c| u8::from(c.fallen)));
+        out.extend_from_slice(&self.fall);
         let sum = fnv1a(&out);
         out.extend_from_slice(&sum.to_le_bytes());
         out
@@ -508,10 +547,10 @@ impl Recording {
         let phase: Vec<f32> = f32s(take(n, 4));
         let terms: Vec<f32> = f32s(take(n * header.terms.len(), 4));
         let words = u64s(take(n * CONTACT_WORDS, 8));
-        let fallen = take(n, 1);
+        let fall = take(n, 1).to_vec();
         let contacts = words
             .chunks_exact(CONTACT_WORDS)
-            .zip(fallen)
+            .zip(&fall)
             .map(|(w, &f)| Contacts {
                 fallen: f != 0,
                 pelvis_on: w[0],
@@ -520,7 +559,7 @@ impl Recording {
                 prop_on_floor: w[4],
             })
             .collect();
-        let rec = Recording { header, time, qpos, poses, ghost, skill, phase, terms, contacts };
+        let rec = Recording { header, time, qpos, poses, ghost, skill, phase, terms, contacts, fall };
         rec.check()?;
         Ok(rec)
     }
@@ -562,6 +601,7 @@ impl Recording {
             ("phase", self.phase.len(), n),
             ("terms", self.terms.len(), n * h.terms.len()),
             ("contacts", self.contacts.len(), n),
+            ("fall", self.fall.len(), n),
         ];
         if let Some((what, got, want)) = sizes.iter().find(|(_, got, want)| got != want) {
             return Err(format!("{what} holds {got} values, {n} frames need {want}"));

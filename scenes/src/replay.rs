@@ -89,6 +89,8 @@ fn page_data(rec: &Recording) -> String {
         "phase": b64_f32(rec.phase.iter().copied()),
         "terms": b64_f32(rec.terms.iter().copied()),
         "flags": base64(&flags),
+        "fall": base64(&rec.fall),
+        "fall_causes": crate::fall::FallCause::ALL.map(|c| c.name()),
     });
     // `<` only occurs inside JSON strings, where \u003c reads the same.
     data.to_string().replace('<', "\\u003c")

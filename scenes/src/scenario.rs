@@ -78,6 +78,10 @@ pub struct Scenario {
     /// decision is turned aside when the straight way to it passes close to one of them.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub detour: Option<Detour>,
+    /// What counts as a fall ([`crate::fall`]; every task, skill and evaluation in this scene
+    /// uses it). Absent: the defaults.
+    #[serde(default, skip_serializing_if = "crate::fall::FallRule::is_default")]
+    pub fall: crate::fall::FallRule,
 }
 
 /// Steering around props (a navigation layer under the meta-controller). At every decision the
@@ -1145,6 +1149,10 @@ impl ScenarioFile {
                     self.invalid(Some("radius_m"), format!("the detour needs `radius_m` > 0 (it is {})", d.radius_m))
                 );
             }
+        }
+
+        if let Err(message) = s.fall.check() {
+            return Err(self.invalid(Some("fall"), message));
         }
 
         if let Some(c) = &s.curriculum {

@@ -9,7 +9,9 @@
 use crate::body::{BodyDef, BodyIndex, compile};
 use crate::compose::{scene_mjcf, yaw_quat};
 use crate::error::{Result, SceneError};
+use crate::fall::{FALL_STATE_LEN, Fall, FallMonitor, FallRule, FallSigns, Part, PropUse};
 use crate::math::{Frame, wrap_angle};
+use crate::record::Recording;
 use crate::scenario::{BodySource, Facing, Prop, ScenarioFile, Zone};
 use mujoco_rs::prelude::*;
 use rand::Rng;
@@ -96,6 +98,12 @@ pub struct WorldModel {
     geom_body: Vec<usize>,
     geom_prop: Vec<Option<usize>>,
     substeps: usize,
+    /// Per model body, how the fall test's contact rules treat it.
+    parts: Vec<Part>,
+    /// Per prop, what the fall test lets touch it.
+    prop_use: Vec<PropUse>,
+    /// The pelvis height below which the fall test calls it low (m).
+    pelvis_min: f64,
 }
 
 impl WorldModel {
@@ -155,6 +163,19 @@ impl WorldModel {
         }
 
         let substeps = scenario.scenario.rates.substeps();
+        let parent: Vec<usize> = model.body_parentid().iter().map(|&p| p as usize).collect();
+        let parts = crate::fall::parts(&index, &parent);
+        let prop_use = scenario
+            .scenario
+            .props
+            .iter()
+            .map(|p| match p {
+                Prop::Chair(_) => PropUse::Seat,
+                Prop::Pedestal(_) | Prop::Bucket(_) => PropUse::Stand,
+                Prop::Box(_) | Prop::Ball(_) => PropUse::Handled,
+            })
+            .collect();
+        let pelvis_min = scenario.scenario.fall.pelvis_below * model.qpos0()[index.root_qpos + 2];
         Ok(Self {
             scenario,
             body,
@@ -166,6 +187,9 @@ impl WorldModel {
             geom_body,
             geom_prop,
             substeps,
+            parts,
+            prop_use,
+            pelvis_min,
         })
     }
 
@@ -182,6 +206,11 @@ impl WorldModel {
     /// Seconds per control tick.
     pub fn control_dt(&self) -> f64 {
         1.0 / f64::from(self.scenario.scenario.rates.control_hz)
+    }
+
+    /// What counts as a fall in this scene.
+    pub fn fall_rule(&self) -> &FallRule {
+        &self.scenario.scenario.fall
     }
 
     /// Index of the prop called `name`.
@@ -225,6 +254,8 @@ pub struct World {
     /// The hands' grip level in [0, 1]: what [`World::set_grip`] wrote to the grip actuators'
     /// controls, kept to write again after MuJoCo's reset zeroes them.
     grip: f64,
+    /// The fall test's running state ([`crate::fall`]).
+    fall: FallMonitor,
 }
 
 /// What of MuJoCo's state [`World`] keeps from before a step's last substep: time, qpos, qvel,
@@ -258,8 +289,18 @@ impl World {
             })
             .collect();
         let before_last = vec![0.0; shared.model.state_size(BEFORE_LAST)];
-        let mut world = Self { shared, data, placements, owns_model: false, stepped: false, before_last, grip: 0.0 };
+        let mut world = Self {
+            shared,
+            data,
+            placements,
+            owns_model: false,
+            stepped: false,
+            before_last,
+            grip: 0.0,
+            fall: FallMonitor::default(),
+        };
         world.forward();
+        world.restart_fall_test();
         world
     }
 
@@ -614,6 +655,7 @@ impl World {
         }
         self.hold_pose();
         self.forward();
+        self.restart_fall_test();
     }
 
     /// Sets the character's pose: root position, root orientation (w x y z) and the actuated
@@ -661,6 +703,7 @@ impl World {
         }
         self.hold_pose();
         self.forward();
+        self.restart_fall_test();
         Ok(())
     }
 
@@ -682,6 +725,7 @@ impl World {
         self.data.qvel_mut().copy_from_slice(qvel);
         self.hold_pose();
         self.forward();
+        self.restart_fall_test();
         Ok(())
     }
 
@@ -696,6 +740,7 @@ impl World {
             + PLACEMENT_LEN * self.placements.len()
             + 1
             + self.before_last.len()
+            + FALL_STATE_LEN
     }
 
     /// Everything that decides this world's future, as numbers: time, qpos, qvel, activations,
@@ -724,6 +769,7 @@ impl World {
         } else {
             out.extend(std::iter::repeat_n(0.0, self.before_last.len()));
         }
+        self.fall.snapshot(out);
     }
 
     /// Restores a [`World::snapshot`]; a snapshot of another scene (wrong length) or holding a
@@ -784,6 +830,9 @@ impl World {
         }
         let stepped = take(1)[0] != 0.0;
         let before_last = take(self.before_last.len());
+        let mut fall = FallMonitor::default();
+        fall.restore(take(FALL_STATE_LEN)).map_err(|e| SceneError::Usage(format!("restore: {e}")))?;
+        self.fall = fall;
         if stepped {
             // The last substep again, from where it started: MuJoCo's derived quantities then
             // belong to that state, as they did in the world the snapshot was taken of (a
@@ -857,7 +906,116 @@ impl World {
             self.data.step();
         }
         self.stepped = self.shared.substeps > 0;
+        self.check_fall(self.shared.control_dt());
         Ok(())
+    }
+
+    /// Runs the fall test on what the world shows now, `dt` seconds after its last check.
+    fn check_fall(&mut self, dt: f64) {
+        let signs = self.fall_signs();
+        let time = self.data.time();
+        self.fall.update(&self.shared.scenario.scenario.fall, &signs, self.shared.pelvis_min, dt, time);
+    }
+
+    /// Forgets any fall and its timers and checks the rules that count at once (a new episode,
+    /// a state set by hand).
+    fn restart_fall_test(&mut self) {
+        self.fall.reset();
+        self.check_fall(0.0);
+    }
+
+    /// What the fall test reads from the world now: the first part touching the floor that may
+    /// not, the first part on a prop not meant for it, and the pelvis' and head's heights.
+    pub fn fall_signs(&self) -> FallSigns {
+        let shared = &*self.shared;
+        let idx = &shared.index;
+        let hands_ok = shared.scenario.scenario.fall.hands_on_floor;
+        let mut signs = FallSigns { pelvis: idx.pelvis, head: idx.head, ..FallSigns::default() };
+        for c in self.data.contact() {
+            let (g1, g2) = (c.geom[0] as usize, c.geom[1] as usize);
+            for (g, other) in [(g1, g2), (g2, g1)] {
+                let b = shared.geom_body[g];
+                let part = shared.parts[b];
+                if matches!(part, Part::World | Part::Foot) {
+                    continue;
+                }
+                if other == shared.floor_geom && !(hands_ok && part == Part::Hand) {
+                    signs.floor.get_or_insert(b);
+                }
+                if let Some(p) = shared.geom_prop[other]
+                    && shared.prop_use[p].forbids(part)
+                {
+                    signs.prop.get_or_insert((b, p));
+                }
+            }
+        }
+        let pelvis = self.body_position(idx.pelvis)[2];
+        signs.pelvis_z = pelvis;
+        signs.head_over_pelvis = self.body_position(idx.head)[2] - pelvis;
+        signs
+    }
+
+    /// The fall test run again over a recording of this scene, frame by frame from its recorded
+    /// qpos and fixed props' poses (velocities zero, so only what poses and contacts show):
+    /// per frame, the fall once one counted. Recordings made before the shared fall test, or
+    /// under another rule, are judged by this scene's. `Err` when the recording is of another
+    /// scene (its qpos width or bodies differ).
+    pub fn judge(&mut self, rec: &Recording) -> Result<Vec<Option<Fall>>> {
+        let h = &rec.header;
+        let model = &self.shared.model;
+        let nbody = model.ffi().nbody as usize;
+        let names: Vec<&str> =
+            (1..nbody).map(|b| model.id_to_name(MjtObjBase::mjOBJ_BODY, b).unwrap_or_default()).collect();
+        if h.nq != self.data.qpos().len() || h.bodies.len() != names.len() {
+            return Err(SceneError::Usage(format!(
+                "the recording `{}` is of a scene with qpos width {} and {} bodies; scenario `{}` has {} and {}",
+                h.title,
+                h.nq,
+                h.bodies.len(),
+                self.shared.scenario.scenario.name,
+                self.data.qpos().len(),
+                names.len()
+            )));
+        }
+        if let Some((b, (want, got))) =
+            names.iter().zip(&h.bodies).map(|(n, r)| (*n, r.name.as_str())).enumerate().find(|(_, (n, r))| n != r)
+        {
+            return Err(SceneError::Usage(format!(
+                "the recording's body {b} is `{got}`; scenario `{}` has `{want}` there",
+                self.shared.scenario.scenario.name
+            )));
+        }
+        let fixed: Vec<(usize, usize)> = self
+            .shared
+            .props
+            .iter()
+            .filter_map(|p| match p.mount {
+                PropMount::Fixed { mocap } => Some((mocap, p.body)),
+                PropMount::Free { .. } => None,
+            })
+            .collect();
+        let dt = rec.dt();
+        self.fall.reset();
+        let mut out = Vec::with_capacity(rec.frames());
+        for f in 0..rec.frames() {
+            self.data.qpos_mut().copy_from_slice(rec.qpos_at(f));
+            self.data.qvel_mut().fill(0.0);
+            self.data.set_time(rec.time[f]);
+            for &(mocap, body) in &fixed {
+                let (pos, quat) = rec.pose(f, body - 1);
+                self.data.mocap_pos_mut()[mocap] = pos;
+                self.data.mocap_quat_mut()[mocap] = quat;
+            }
+            self.forward();
+            self.check_fall(if f == 0 { 0.0 } else { dt });
+            out.push(self.fall.fall());
+        }
+        Ok(out)
+    }
+
+    /// The fall, once the fall test counted one this episode ([`crate::fall`]).
+    pub fn fall(&self) -> Option<Fall> {
+        self.fall.fall()
     }
 
     /// Recomputes MuJoCo's derived quantities for the present state (after a state was set by
@@ -1057,11 +1215,14 @@ impl World {
         let r = self.shared.index.root_qpos;
         self.data.qpos_mut()[r + 2] += dz;
         self.forward();
+        self.restart_fall_test();
     }
 
-    /// True when a body part other than those allowed (the feet) touches the floor.
+    /// True once the fall test ([`crate::fall`]) counted a fall this episode: a part not
+    /// allowed on the floor touched it, a part lay on a prop not meant for it, the pelvis went
+    /// low or the head stayed below it.
     pub fn has_fallen(&self) -> bool {
-        self.contacts().fallen
+        self.fall.fall().is_some()
     }
 }
 
@@ -1069,7 +1230,8 @@ impl World {
 /// the last bit).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Contacts {
-    /// A non-foot body part touches the floor.
+    /// A body part not allowed on the floor (the map's `floor_contact_allowed`) touches it now.
+    /// One sign the fall test reads; [`World::has_fallen`] is the test.
     pub fallen: bool,
     /// Props whose key geom (the seat, ...) the pelvis touches.
     pub pelvis_on: u64,

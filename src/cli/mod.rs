@@ -54,6 +54,9 @@ pub enum Command {
     Replay(replay::ReplayArgs),
     /// Export a recording's motion: BVH (Blender, Maya, game engines) and/or qpos as .npy.
     Export(replay::ExportArgs),
+    /// Judge recordings again by a scenario's fall test (from their poses), beside what was
+    /// recorded: re-checks recordings made before the shared fall test or under another rule.
+    FallCheck(replay::FallCheckArgs),
     /// Run an ablation study (variants × seeds of the meta-controller) and write its table.
     Ablate {
         /// The study (RON): scenario, library, seeds, iterations, trials, variants.
@@ -148,6 +151,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Latent(cmd) => latent::run(cmd),
         Command::Replay(args) => replay::replay(args),
         Command::Export(args) => replay::export(args),
+        Command::FallCheck(args) => replay::fall_check(args),
         Command::Ablate { spec, out, plan_only, seeds, iterations, trials, jobs } => {
             ablate::run(&spec, &out, plan_only, &ablate::Overrides { seeds, iterations, trials }, jobs)
         }

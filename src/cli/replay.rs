@@ -1,11 +1,13 @@
-//! `repertoire replay RUN_OR_FILE -o out.html` and `repertoire export FILE --bvh/--npy`.
+//! `repertoire replay RUN_OR_FILE -o out.html`, `repertoire export FILE --bvh/--npy` and
+//! `repertoire fall-check FILE --scenario S`.
 
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use repertoire_scenes::Recording;
 use repertoire_scenes::replay::{WEB_DIR, three_build_dir, write_html};
+use repertoire_scenes::{Recording, World, WorldModel};
+use std::sync::Arc;
 
 #[derive(Debug, Args)]
 pub struct ReplayArgs {
@@ -29,6 +31,23 @@ pub struct ExportArgs {
     /// Write qpos per frame as NumPy float64 `frames × nq`.
     #[arg(long)]
     pub npy: Option<PathBuf>,
+}
+
+#[derive(Debug, Args)]
+pub struct FallCheckArgs {
+    /// Recordings (`.rec`), or folders holding some (an eval folder's `worst/` is searched too).
+    #[arg(required = true)]
+    pub inputs: Vec<PathBuf>,
+    /// The scenario the recordings were made in (default: the built-in scenes/sit.ron; a skill's
+    /// recordings: its spec's `scene`, e.g. skills/skill/specs/arena.ron).
+    #[arg(long)]
+    pub scenario: Option<PathBuf>,
+    /// With one recording: write its last S seconds to --cut-out (a test fixture of a fall).
+    #[arg(long, requires = "cut_out")]
+    pub last_s: Option<f64>,
+    /// Where --last-s writes the cut recording.
+    #[arg(long, requires = "last_s")]
+    pub cut_out: Option<PathBuf>,
 }
 
 /// The web folder: `--web`, else `$REPERTOIRE_WEB`, else `scenes/web` in the working
@@ -136,4 +155,71 @@ pub fn pages_beside(recs: &[PathBuf]) -> Vec<PathBuf> {
         }
     }
     pages
+}
+
+/// The recordings named: files as given, folders searched (with their `worst/`).
+fn recordings_of(inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
+    let mut recs = Vec::new();
+    for input in inputs {
+        if input.is_dir() {
+            let found = recordings_in(input)?;
+            if found.is_empty() {
+                bail!("{}: no recordings (.rec) in it or in its worst/ folder", input.display());
+            }
+            recs.extend(found);
+        } else {
+            recs.push(input.clone());
+        }
+    }
+    Ok(recs)
+}
+
+/// `repertoire fall-check`: each recording judged again by the scenario's fall test, beside
+/// what was recorded when it was made.
+pub fn fall_check(args: FallCheckArgs) -> Result<()> {
+    let scenario = super::load_scenario(args.scenario.as_ref())?;
+    let name = scenario.path.display().to_string();
+    let model = Arc::new(WorldModel::build(scenario)?);
+    let mut world = World::new(Arc::clone(&model));
+    let recs = recordings_of(&args.inputs)?;
+    if args.last_s.is_some() && recs.len() != 1 {
+        bail!("--last-s cuts one recording; {} were named", recs.len());
+    }
+    let body = |b: usize| model.mj_model().id_to_name(mujoco_rs::prelude::MjtObjBase::mjOBJ_BODY, b).unwrap_or("?");
+    println!("fall test of {name}: {:?}", model.fall_rule());
+    println!("| recording | frames | recorded | fall test now | cause | part | prop |");
+    println!("|---|---:|---|---|---|---|---|");
+    let (mut recorded_falls, mut falls) = (0, 0);
+    for path in &recs {
+        let rec = Recording::load(path)?;
+        let verdicts = world.judge(&rec).with_context(|| format!("{}: cannot judge it", path.display()))?;
+        let at = |f: usize| format!("frame {f} ({:.2} s)", rec.time[f]);
+        let recorded = rec.first_fall().map_or("no fall".to_string(), |(f, c)| format!("{}, {}", at(f), c.name()));
+        let now = verdicts.iter().position(Option::is_some);
+        recorded_falls += usize::from(rec.first_fall().is_some());
+        falls += usize::from(now.is_some());
+        match now.and_then(|f| verdicts[f].map(|v| (f, v))) {
+            Some((f, v)) => println!(
+                "| {} | {} | {recorded} | {} | {} | {} | {} |",
+                path.display(),
+                rec.frames(),
+                at(f),
+                v.cause.name(),
+                body(v.body),
+                v.prop.map_or("—".to_string(), |p| model.props[p].name.clone())
+            ),
+            None => println!("| {} | {} | {recorded} | no fall | — | — | — |", path.display(), rec.frames()),
+        }
+        if let (Some(s), Some(out)) = (args.last_s, &args.cut_out) {
+            if !(s.is_finite() && s > 0.0) {
+                bail!("--last-s must be a positive number of seconds (got {s})");
+            }
+            let keep = ((s * rec.header.control_hz).round() as usize).clamp(1, rec.frames());
+            let cut = rec.frames_from(rec.frames() - keep);
+            cut.save(out)?;
+            println!("the last {keep} frames written to {}", out.display());
+        }
+    }
+    println!("{falls} of {} recordings fall by the fall test now ({recorded_falls} as recorded)", recs.len());
+    Ok(())
 }

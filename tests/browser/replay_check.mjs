@@ -54,8 +54,8 @@ try {
   await page.waitForFunction(() => window.__replay && window.__replay.ready && window.__replay.drawn > 2, null,
     { timeout: 60_000 });
   const first = await page.evaluate(() => ({ ...window.__replay }));
-  // Sample the playback for 1.5 s: a short recording loops, so a single later sample can land
-  // back on the first frame; any other frame seen means it advanced.
+  // Sample the playback for 1.5 s: any frame other than the first seen means it advanced (a
+  // short recording stops on its last frame).
   const seen = new Set([first.frame]);
   let later = first;
   for (let i = 0; i < 15; i++) {
@@ -82,7 +82,8 @@ try {
   if (!(seen.size > 1 && later.drawn > first.drawn)) {
     problems.push(`playback did not advance: frames seen ${[...seen].join(', ')}, draws ${first.drawn} → ${later.drawn}`);
   }
-  if (!later.playing) problems.push('the page is not playing');
+  // An episode plays once and stops on its last frame; before that it must be playing.
+  if (!later.playing && later.frame !== later.frames - 1) problems.push('the page is not playing');
 } catch (e) {
   problems.push(`${e.message}`);
 } finally {

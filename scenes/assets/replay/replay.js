@@ -40,6 +40,9 @@ const skill = decode(data.skill, Int32Array);
 const phase = decode(data.phase, Float32Array);
 const terms = decode(data.terms, Float32Array);
 const flags = decode(data.flags, Uint8Array);
+// The fall test's verdict per frame (0 none, else a cause code 1..4; older pages: the flag).
+const fallCode = data.fall ? decode(data.fall, Uint8Array) : flags.map((v) => v & 1);
+const fallCause = (f) => (fallCode[f] ? (data.fall_causes || [])[fallCode[f] - 1] || 'fall' : '');
 const NT = H.terms.length;
 const character = H.bodies.map((b, i) => (b.character ? i : -1)).filter((i) => i >= 0);
 const hasGhost = H.ghost !== null && ghostPoses.length === N * character.length * P;
@@ -148,6 +151,8 @@ let speed = 1;
 let ghostMode = 'beside';
 let follow = true;
 function setPlaying(p) {
+  // Play from the start again once the end was reached.
+  if (p && cursor >= N - 1) cursor = 0;
   playing = p;
   playButton.textContent = p ? '❚❚' : '▶';
   hook.playing = p;
@@ -200,8 +205,15 @@ function drawStrip(frame) {
     const f = Math.min(N - 1, Math.floor((x / w) * N));
     ctx.fillStyle = skillColor(skill[f]);
     ctx.fillRect(x, 0, 1, h - 4);
-    ctx.fillStyle = flags[f] & 1 ? '#ff4d4d' : flags[f] & 2 ? '#7cff7c' : '#262b31';
-    ctx.fillRect(x, h - 3, 1, 3);
+    // A fall covers the lower half of the strip in hatched red from the frame it counted on, so
+    // it reads apart from any skill colour; seat contact is the green line under the strip.
+    if (fallCode[f]) {
+      ctx.fillStyle = (x >> 2) % 2 ? '#ff2020' : '#ffffff';
+      ctx.fillRect(x, Math.floor(h / 2), 1, h - Math.floor(h / 2));
+    } else {
+      ctx.fillStyle = flags[f] & 2 ? '#7cff7c' : '#262b31';
+      ctx.fillRect(x, h - 3, 1, 3);
+    }
   }
   const cx = (frame / Math.max(1, N - 1)) * (w - 1);
   ctx.fillStyle = '#ffffff';
@@ -257,7 +269,7 @@ function placeFrame(f) {
 function overlay(f) {
   const s = skill[f];
   const fl = flags[f];
-  const contacts = [fl & 1 ? 'FALLEN' : '', fl & 2 ? 'pelvis on seat' : '', fl & 4 ? 'hand on prop' : '', fl & 8 ? 'touching a prop' : '']
+  const contacts = [fallCode[f] ? `FALLEN (${fallCause(f)})` : '', fl & 2 ? 'pelvis on seat' : '', fl & 4 ? 'hand on prop' : '', fl & 8 ? 'touching a prop' : '']
     .filter(Boolean).join(', ') || '—';
   ui('info').textContent =
     `t ${time[f].toFixed(2)} s   frame ${f + 1}/${N}\n` +
@@ -286,7 +298,11 @@ let shown = -1;
 function frameLoop(now) {
   const dt = Math.min(0.1, (now - last) / 1000);
   last = now;
-  if (playing) cursor = (cursor + dt * speed * H.control_hz) % N;
+  // An episode plays once and stops on its last frame (a fall stays in view); play restarts it.
+  if (playing) {
+    cursor += dt * speed * H.control_hz;
+    if (cursor >= N - 1) { cursor = N - 1; setPlaying(false); }
+  }
   const f = Math.min(N - 1, Math.max(0, Math.floor(cursor)));
   placeFrame(f);
   if (f !== shown) {

@@ -555,7 +555,7 @@ impl ImitationTask {
         let t = &settings.termination;
         // A dropped box or ball ends the episode like a fall, and so does touching the obstacle.
         let bumped = settings.obstacle.as_ref().is_some_and(|(p, o)| o.touch_ends && contacts.character_on_prop(*p));
-        let fell = (t.fall && contacts.fallen) || pelvis.pos[2] < t.min_height || object.2 || bumped;
+        let fell = (t.fall && world.has_fallen()) || pelvis.pos[2] < t.min_height || object.2 || bumped;
         self.touched = bumped;
         let reward = if fell {
             0.0
