@@ -1,6 +1,7 @@
-//! The meta environment over a (barely trained) skill library: decisions run the chosen skill
-//! for control_hz / meta_hz ticks, the graph's mask holds, training writes a controller that
-//! loads, and evaluation is reproducible for a seed.
+//! The meta environment: decisions run the chosen skill for control_hz / meta_hz ticks, the
+//! graph's mask holds, clips are picked up and held as they should be (under a fall rule that
+//! never ends an episode, so a barely trained skill's stumble cannot cut the check short),
+//! training writes a controller that loads, and evaluation is reproducible for a seed.
 
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, OnceLock};
@@ -47,9 +48,24 @@ fn setup(graph: Option<SkillGraph>) -> Arc<MetaSetup> {
     Arc::new(MetaSetup::new(model, library(), graph).expect("meta setup"))
 }
 
+/// The same scenario and library with a fall rule that never counts a fall (the floor, props,
+/// a low pelvis and a head below it all given a million seconds): decisions run whatever the
+/// barely trained skills do to the body, for the tests of how clips are played, picked up and
+/// held, which falls would otherwise cut short.
+fn steady() -> Arc<MetaSetup> {
+    let text = sit_scenario().text;
+    let end = text.rfind(')').expect("the scenario closes");
+    let never = "    fall: (floor_s: 1000000.0, prop_s: 1000000.0, pelvis_below: 0.0, inverted_s: 1000000.0),\n";
+    let text = format!("{}{never}{}", &text[..end], &text[end..]);
+    let file = ScenarioFile::parse(Path::new("sit-steady.ron"), text).expect("the scenario with the rule parses");
+    let model = Arc::new(WorldModel::build(file).expect("scene"));
+    let graph = SkillGraph::of(&model.scenario.scenario);
+    Arc::new(MetaSetup::new(model, library(), graph).expect("meta setup"))
+}
+
 #[test]
 fn a_decision_runs_the_chosen_skill_and_respects_the_graph() {
-    let s = setup(None);
+    let s = steady();
     assert_eq!(s.ticks, 30, "60 Hz skills under a 2 Hz meta-controller");
     let mut env = MetaEnv::new(Arc::clone(&s));
     let mut rng = EnvRng::seed_from_u64(1);
@@ -61,9 +77,8 @@ fn a_decision_runs_the_chosen_skill_and_respects_the_graph() {
     let t0 = env.world().time();
     let out = env.step(&[0.0, 1.0, 0.0], &mut obs); // walk
     let dt = env.world().time() - t0;
-    if !out.terminated {
-        assert!((dt - 0.5).abs() < 1e-5, "one decision is 0.5 s of physics, got {dt}");
-    }
+    assert!(!out.terminated, "no fall ends a decision under the steady rule");
+    assert!((dt - 0.5).abs() < 1e-5, "one decision is 0.5 s of physics, got {dt}");
     assert!(obs.iter().all(|v| v.is_finite()));
     env.option_mask(&mut mask);
     assert_eq!(mask, [true, true, true, true, true, false], "after walk: walk or a turn");
@@ -74,7 +89,7 @@ fn a_decision_runs_the_chosen_skill_and_respects_the_graph() {
 
 #[test]
 fn a_turn_is_never_run_past_its_clip() {
-    let s = setup(None);
+    let s = steady();
     let frames = s.skills[1].frames;
     assert!(!s.skills[1].looping);
     let mut env = MetaEnv::new(Arc::clone(&s));
@@ -86,9 +101,7 @@ fn a_turn_is_never_run_past_its_clip() {
     for _ in 0..10 {
         let t0 = env.world().time();
         let out = env.step(&[1.0, 0.0, 0.0], &mut obs);
-        if out.terminated {
-            return; // a barely trained turn may fall; nothing more to check
-        }
+        assert!(!out.terminated, "no fall ends a decision under the steady rule");
         let k = ((env.world().time() - t0) * 60.0).round() as usize;
         ticks += k;
         if k < 30 {
@@ -100,15 +113,14 @@ fn a_turn_is_never_run_past_its_clip() {
     // Choosing the turn again plays its clip again: a full decision.
     let t0 = env.world().time();
     let out = env.step(&[1.0, 0.0, 0.0], &mut obs);
-    if !out.terminated {
-        assert!((env.world().time() - t0 - 0.5).abs() < 1e-5);
-    }
+    assert!(!out.terminated, "the turn played again does not fall");
+    assert!((env.world().time() - t0 - 0.5).abs() < 1e-5);
     assert_eq!(env.chosen, [1], "re-choosing the current skill is not a switch");
 }
 
 #[test]
 fn a_sit_chosen_again_holds_its_seated_frame_while_a_turn_replays() {
-    let s = setup(None);
+    let s = steady();
     let sit_index = s.skills.iter().position(|k| k.name == "sit").expect("sit.ron has a sit");
     let (turn, sit) = (&s.skills[1], &s.skills[sit_index]);
     assert_eq!((turn.name.as_str(), sit.name.as_str()), ("turn_left", "sit"));
@@ -127,20 +139,17 @@ fn a_sit_chosen_again_holds_its_seated_frame_while_a_turn_replays() {
     env.reset(&mut rng, &mut obs);
     let phi = s.layout.size + s.task.extra_dim() + s.skills.len();
     for _ in 0..12 {
-        if env.step(&[1.0, 0.0, 0.0], &mut obs).terminated {
-            return; // a barely trained turn may fall; the unit checks above still stand
-        }
+        assert!(!env.step(&[1.0, 0.0, 0.0], &mut obs).terminated, "no fall ends a decision under the steady rule");
         if obs[phi] >= 1.0 {
             break;
         }
     }
+    assert!(obs[phi] >= 1.0, "the turn reached its clip's end");
     let decisions = (last_sit as f64 / 30.0).ceil() as usize + 2;
     for d in 0..decisions {
         let t0 = env.world().time();
         let out = env.step(&[sit_index as f32, 0.0, 0.0], &mut obs);
-        if out.terminated || out.truncated {
-            return;
-        }
+        assert!(!out.terminated && !out.truncated, "sit decision {d} ended the episode");
         assert!((env.world().time() - t0 - 0.5).abs() < 1e-5, "sit decision {d} was cut short");
         let expected = ((d + 1) * 30).min(last_sit) as f32 / last_sit as f32;
         assert!((obs[phi] - expected).abs() < 1e-6, "decision {d}: phase {} for {expected}", obs[phi]);
@@ -149,7 +158,7 @@ fn a_sit_chosen_again_holds_its_seated_frame_while_a_turn_replays() {
 
 #[test]
 fn a_walk_chosen_after_a_turn_picks_its_cycle_up_at_the_nearest_frame() {
-    let s = setup(None);
+    let s = steady();
     let (walk, turn) = (&s.skills[0], &s.skills[1]);
     assert_eq!((walk.name.as_str(), turn.name.as_str()), ("walk_to", "turn_left"));
     let dof = s.model.index.joints.len();
@@ -167,17 +176,13 @@ fn a_walk_chosen_after_a_turn_picks_its_cycle_up_at_the_nearest_frame() {
     let mut rng = EnvRng::seed_from_u64(5);
     let mut obs = vec![0.0; env.obs_dim()];
     env.reset(&mut rng, &mut obs);
-    if env.step(&[1.0, 0.0, 0.0], &mut obs).terminated {
-        return; // a barely trained turn may fall; the checks above still stand
-    }
+    assert!(!env.step(&[1.0, 0.0, 0.0], &mut obs).terminated, "no fall ends a decision under the steady rule");
     let (mut q, mut v) = (vec![0.0; dof], vec![0.0; dof]);
     env.world().joint_angles(&mut q);
     env.world().joint_velocities(&mut v);
     let entry = walk.entry_frame(&q, &v);
     let t0 = env.world().time();
-    if env.step(&[0.0, 0.0, 0.0], &mut obs).terminated {
-        return;
-    }
+    assert!(!env.step(&[0.0, 0.0, 0.0], &mut obs).terminated, "no fall ends a decision under the steady rule");
     let ticks = ((env.world().time() - t0) * s.control_hz()).round() as usize;
     let phi = s.layout.size + s.task.extra_dim() + s.skills.len();
     let cycle = walk.frames - 1;
