@@ -7,6 +7,7 @@ use anyhow::{Context, Result, bail};
 use clap::{Args, Subcommand, ValueEnum};
 use repertoire_skill::eval::{StartFrom, evaluate, pool_of};
 use repertoire_skill::library;
+use repertoire_skill::motion::{MotionQuality, reference_quality};
 use repertoire_skill::spec::Init;
 use repertoire_skill::train::{TrainOptions, TrainOutcome, default_run_dir, train};
 use repertoire_skill::{SkillSetup, SpecFile};
@@ -355,6 +356,7 @@ fn eval_cmd(
             r.normalized_return
         );
     }
+    print_motion(&setup, &rows, &predecessors);
     for r in &rows {
         let start = if r.start == StartFrom::ClipStart { "the clip start" } else { "the predecessors' end poses" };
         if let Some(targets) = r.targets_per_trial {
@@ -418,4 +420,44 @@ fn play_cmd(
         println!("replay page written to {} ({:.1} MB)", out.display(), size as f64 / 1e6);
     }
     Ok(())
+}
+
+/// The motion table: each evaluation's means beside the reference clip measured the same way.
+fn print_motion(setup: &SkillSetup, rows: &[repertoire_skill::eval::EvalReport], predecessors: &[String]) {
+    let reference = reference_quality(&setup.model, &setup.settings.reference);
+    let looping = setup.settings.reference.looping;
+    println!(
+        "\nmotion, means over the trials; the reference clip played on the body without physics{}:\n",
+        if looping { " (one cycle, so its turn is per cycle)" } else { "" }
+    );
+    println!(
+        "| skill | rollouts | foot slip in stance (m/s) | swing clearance (cm) | torso tilt (°) | arm swing (cm) | \
+         pelvis jerk (m/s³) | turn (°) | pose term | end-effector term |"
+    );
+    println!("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|");
+    let line = |what: &str, m: &MotionQuality| {
+        let term = |t: Option<f64>| t.map_or("—".to_string(), |v| format!("{v:.3}"));
+        println!(
+            "| {} | {what} | {:.3} | {:.1} | {:.1} | {:.1} | {:.0} | {:.1} | {} | {} |",
+            setup.spec.spec.name,
+            m.foot_slip_m_s,
+            100.0 * m.clearance_m,
+            m.torso_tilt_deg,
+            100.0 * m.arm_swing_m,
+            m.jerk_m_s3,
+            m.turn_deg,
+            term(m.pose_term),
+            term(m.end_effector_term)
+        );
+    };
+    line("reference clip", &reference);
+    for r in rows {
+        if let Some(m) = &r.motion {
+            let start = match r.start {
+                StartFrom::ClipStart => "from the clip start".to_string(),
+                StartFrom::Predecessors => format!("from end poses of {}", predecessors.join(", ")),
+            };
+            line(&start, m);
+        }
+    }
 }

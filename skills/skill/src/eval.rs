@@ -15,6 +15,7 @@ use rand::{Rng, SeedableRng};
 use crate::error::Result;
 use crate::imitation::{ImitationTask, TaskSettings};
 use crate::library::LibrarySkill;
+use crate::motion::{MotionMeter, MotionQuality};
 use crate::pool::{Pool, PoolState};
 use crate::skill::SkillSetup;
 use crate::spec::{Goal, Init};
@@ -59,6 +60,9 @@ pub struct EvalReport {
     /// such touches (the character may still have been on its feet).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub touches: Option<usize>,
+    /// How the trials moved ([`crate::motion`]), means over them.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub motion: Option<MotionQuality>,
 }
 
 /// Runs `trials` episodes of `skill` in `setup`'s environment, `batch` at a time in parallel,
@@ -151,7 +155,10 @@ pub fn evaluate(
         mean_return: 0.0,
         targets_per_trial: settings.goal.steering().filter(|st| st.reach_m > 0.0).map(|_| 0.0),
         touches: settings.obstacle.as_ref().filter(|(_, o)| o.touch_ends).map(|_| 0),
+        motion: None,
     };
+    let mut meters: Vec<MotionMeter> = (0..batch).map(|_| MotionMeter::new(&setup.model)).collect();
+    let mut motion = Vec::with_capacity(trials);
     let mut pool = Vec::new();
     // A cycle (walk) has no end pose: every trial ends at the same phase of it. Its pool takes
     // the state at a random moment of each successful trial instead (drawn from a stream of its
@@ -174,6 +181,7 @@ pub fn evaluate(
     for i in 0..batch {
         if started < trials {
             max_len[i] = begin(&mut envs[i], &mut rngs[i], &mut obs[i * od..(i + 1) * od]);
+            meters[i].observe(envs[i].world());
             capture_at[i] = draw_moment(max_len[i]);
             started += 1;
         } else {
@@ -199,6 +207,8 @@ pub fn evaluate(
             let Some(out) = out else { continue };
             returns[i] += f64::from(out.reward);
             let env = &mut envs[i];
+            meters[i].observe(env.world());
+            meters[i].observe_terms(out.terms[0], out.terms[2]);
             if looping && !out.terminated && env.steps() == capture_at[i] {
                 let mut state = PoolState::capture(env.world());
                 state.phase = env.task().phase();
@@ -238,8 +248,11 @@ pub fn evaluate(
             }
             captured[i] = None;
             returns[i] = 0.0;
+            motion.push(meters[i].quality());
+            meters[i].reset();
             if started < trials {
                 max_len[i] = begin(env, &mut rngs[i], &mut obs[i * od..(i + 1) * od]);
+                meters[i].observe(env.world());
                 capture_at[i] = draw_moment(max_len[i]);
                 started += 1;
             } else {
@@ -255,6 +268,7 @@ pub fn evaluate(
     if let Some(t) = report.targets_per_trial.as_mut() {
         *t /= n;
     }
+    report.motion = MotionQuality::mean(&motion);
     Ok((report, pool))
 }
 

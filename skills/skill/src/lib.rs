@@ -12,6 +12,7 @@ pub mod error;
 pub mod eval;
 pub mod imitation;
 pub mod library;
+pub mod motion;
 pub mod play;
 pub mod pool;
 pub mod quat;
