@@ -165,6 +165,15 @@ fn a_snapshot_taken_after_a_fall_restores_the_fall() {
     assert_eq!(other.fall(), world.fall());
     other.restore(&standing).unwrap();
     assert!(!other.has_fallen());
+    // A snapshot whose fall state is bad (cause code 9) is refused and changes nothing.
+    let mut bad = fallen.clone();
+    let code = bad.len() - 4;
+    bad[code] = 9.0;
+    let err = other.restore(&bad).unwrap_err().to_string();
+    assert!(err.contains("cause code 9"), "{err}");
+    let mut after = Vec::new();
+    other.snapshot(&mut after);
+    assert_eq!(after, standing, "the refused restore left the world as it was");
 }
 
 #[test]

@@ -785,6 +785,9 @@ impl World {
         if let Some(k) = state.iter().position(|v| !v.is_finite()) {
             return Err(SceneError::Usage(format!("restore: snapshot value {k} is not a finite number")));
         }
+        // The fall test's state closes the snapshot; a bad one is refused before anything changes.
+        let mut fall = FallMonitor::default();
+        fall.restore(&state[state.len() - FALL_STATE_LEN..]).map_err(|e| SceneError::Usage(format!("restore: {e}")))?;
         let mut rest = state;
         let mut take = |n: usize| {
             let (head, tail) = rest.split_at(n);
@@ -830,8 +833,7 @@ impl World {
         }
         let stepped = take(1)[0] != 0.0;
         let before_last = take(self.before_last.len());
-        let mut fall = FallMonitor::default();
-        fall.restore(take(FALL_STATE_LEN)).map_err(|e| SceneError::Usage(format!("restore: {e}")))?;
+        take(FALL_STATE_LEN); // read before anything was changed (above)
         self.fall = fall;
         if stepped {
             // The last substep again, from where it started: MuJoCo's derived quantities then
