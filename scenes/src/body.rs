@@ -219,18 +219,7 @@ impl BodyIndex {
 
         let nbody = model.ffi().nbody as usize;
         let parent: Vec<usize> = model.body_parentid().iter().map(|&p| p as usize).collect();
-        let in_subtree = |b: usize, root: usize| {
-            let mut b = b;
-            loop {
-                if b == root {
-                    return true;
-                }
-                if b == 0 {
-                    return false;
-                }
-                b = parent[b];
-            }
-        };
+        let in_subtree = |b: usize, root: usize| in_subtree(&parent, b, root);
         let is_character: Vec<bool> = (0..nbody).map(|b| in_subtree(b, pelvis)).collect();
         let mut allowed = Vec::new();
         for name in &map.floor_contact_allowed {
@@ -327,6 +316,20 @@ impl BodyIndex {
     /// Number of actuated joints (the action size of a skill policy).
     pub fn dof(&self) -> usize {
         self.joints.len()
+    }
+}
+
+/// Whether body `b` is `root` or hangs below it, by the model's `parent` ids (the world is 0).
+pub(crate) fn in_subtree(parent: &[usize], b: usize, root: usize) -> bool {
+    let mut b = b;
+    loop {
+        if b == root {
+            return true;
+        }
+        if b == 0 {
+            return false;
+        }
+        b = parent[b];
     }
 }
 

@@ -177,18 +177,6 @@ impl PropUse {
 
 /// Classifies every model body for the contact rules.
 pub fn parts(index: &BodyIndex, parent: &[usize]) -> Vec<Part> {
-    let under = |b: usize, root: usize| {
-        let mut b = b;
-        loop {
-            if b == root {
-                return true;
-            }
-            if b == 0 {
-                return false;
-            }
-            b = parent[b];
-        }
-    };
     (0..index.is_character.len())
         .map(|b| {
             if !index.is_character[b] {
@@ -197,7 +185,7 @@ pub fn parts(index: &BodyIndex, parent: &[usize]) -> Vec<Part> {
                 Part::Foot
             } else if index.hand_of[b].is_some() {
                 Part::Hand
-            } else if under(b, index.head) {
+            } else if crate::body::in_subtree(parent, b, index.head) {
                 Part::Head
             } else if b == index.pelvis || b == index.torso {
                 Part::Trunk
