@@ -61,3 +61,30 @@ fn replay_page_draws_plays_and_logs_no_error() {
     assert!(std::fs::metadata(&shot).is_ok_and(|m| m.len() > 10_000), "no screenshot at {}", shot.display());
     println!("{stdout}screenshot: {}", shot.display());
 }
+
+#[test]
+fn the_replay_page_names_the_prop_under_the_pelvis() {
+    // The warehouse fixture of tests/falls.rs: at frame 60 the carrier's pelvis rests on the box
+    // (once labelled "pelvis on seat" whatever the prop).
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let chromium = std::env::var("CHROMIUM").unwrap_or_else(|_| "/usr/bin/chromium".into());
+    assert!(Path::new(&chromium).exists(), "{chromium} is missing: {SETUP}");
+    let dir = common::temp_dir("replay-labels");
+    let html = dir.join("warehouse.html");
+    let rec = root.join("tests/data/falls/warehouse_headstand_on_pedestal.rec");
+    let out = Command::new(env!("CARGO_BIN_EXE_repertoire"))
+        .args(["replay", rec.to_str().unwrap(), "-o", html.to_str().unwrap()])
+        .output()
+        .expect("run repertoire");
+    assert!(out.status.success(), "replay failed: {}", String::from_utf8_lossy(&out.stderr));
+    let check = Command::new("node")
+        .arg(root.join("tests/browser/replay_check.mjs"))
+        .args([html.as_os_str(), dir.join("warehouse.png").as_os_str()])
+        .args(["60", "pelvis on box", "10", "contacts hand on prop"])
+        .env("CHROMIUM", &chromium)
+        .output()
+        .expect("run node");
+    let stdout = String::from_utf8_lossy(&check.stdout);
+    assert!(check.status.success(), "{}\n{stdout}", String::from_utf8_lossy(&check.stderr));
+    assert!(stdout.contains("pelvis on box"), "{stdout}");
+}

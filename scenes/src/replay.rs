@@ -90,10 +90,18 @@ fn page_data(rec: &Recording) -> String {
         "terms": b64_f32(rec.terms.iter().copied()),
         "flags": base64(&flags),
         "fall": base64(&rec.fall),
+        // The first prop whose key geom (a chair's seat, a pedestal's top, a box) the pelvis
+        // touches, + 1 (0: none), so the page can name it.
+        "pelvis_on": base64(&rec.contacts.iter().map(|c| first_prop(c.pelvis_on)).collect::<Vec<u8>>()),
         "fall_causes": crate::fall::FallCause::ALL.map(|c| c.name()),
     });
     // `<` only occurs inside JSON strings, where \u003c reads the same.
     data.to_string().replace('<', "\\u003c")
+}
+
+/// 1 + the lowest prop index set in a contact bit set, 0 for none.
+fn first_prop(bits: u64) -> u8 {
+    if bits == 0 { 0 } else { (bits.trailing_zeros() + 1).min(255) as u8 }
 }
 
 fn escape_html(s: &str) -> String {

@@ -1,8 +1,9 @@
 // Opens a replay page in headless Chromium and checks it works:
-//   node tests/browser/replay_check.mjs PAGE.html SCREENSHOT.png
+//   node tests/browser/replay_check.mjs PAGE.html SCREENSHOT.png [FRAME TEXT]...
 // - the page loads with no console error and no page error;
 // - the canvas is drawn (the screenshot of the 3-D view has many distinct colours);
-// - playback advances (window.__replay.frame moves on while playing).
+// - playback advances (window.__replay.frame moves on while playing);
+// - for each FRAME TEXT pair, the overlay shows TEXT once the slider is moved to FRAME.
 // Uses playwright-core from scenes/web/node_modules (scripts/setup.sh) and /usr/bin/chromium
 // (or $CHROMIUM). Prints one JSON line of measurements; exits 1 with the reason on failure.
 
@@ -14,9 +15,9 @@ import { fileURLToPath, pathToFileURL } from 'node:url';
 
 const here = dirname(fileURLToPath(import.meta.url));
 const web = resolve(here, '../../scenes/web');
-const [page_path, shot_path] = process.argv.slice(2);
-if (!page_path || !shot_path) {
-  console.error('usage: node replay_check.mjs PAGE.html SCREENSHOT.png');
+const [page_path, shot_path, ...expect] = process.argv.slice(2);
+if (!page_path || !shot_path || expect.length % 2) {
+  console.error('usage: node replay_check.mjs PAGE.html SCREENSHOT.png [FRAME TEXT]...');
   process.exit(2);
 }
 const chromium_path = process.env.CHROMIUM || '/usr/bin/chromium';
@@ -84,6 +85,20 @@ try {
   }
   // An episode plays once and stops on its last frame; before that it must be playing.
   if (!later.playing && later.frame !== later.frames - 1) problems.push('the page is not playing');
+  // The overlay at given frames: the slider moved there as a user would.
+  result.overlay = {};
+  for (let i = 0; i < expect.length; i += 2) {
+    const [frame, text] = [Number(expect[i]), expect[i + 1]];
+    await page.evaluate((f) => {
+      const s = document.getElementById('scrub');
+      s.value = String(f);
+      s.dispatchEvent(new Event('input'));
+    }, frame);
+    await page.waitForTimeout(300);
+    const info = await page.evaluate(() => document.getElementById('info').textContent);
+    result.overlay[frame] = info;
+    if (!info.includes(text)) problems.push(`frame ${frame}: the overlay reads "${info}", without "${text}"`);
+  }
 } catch (e) {
   problems.push(`${e.message}`);
 } finally {

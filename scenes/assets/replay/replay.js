@@ -42,6 +42,12 @@ const terms = decode(data.terms, Float32Array);
 const flags = decode(data.flags, Uint8Array);
 // The fall test's verdict per frame (0 none, else a cause code 1..4; older pages: the flag).
 const fallCode = data.fall ? decode(data.fall, Uint8Array) : flags.map((v) => v & 1);
+// Which prop the pelvis rests on (its key geom: a seat, a pedestal's top, a box), by name.
+const pelvisOn = data.pelvis_on ? decode(data.pelvis_on, Uint8Array) : null;
+const pelvisLabel = (f) => {
+  const p = pelvisOn ? pelvisOn[f] : 0;
+  return p && H.props[p - 1] ? `pelvis on ${H.props[p - 1][0]}` : 'pelvis on a prop';
+};
 const fallCause = (f) => (fallCode[f] ? (data.fall_causes || [])[fallCode[f] - 1] || 'fall' : '');
 const NT = H.terms.length;
 const character = H.bodies.map((b, i) => (b.character ? i : -1)).filter((i) => i >= 0);
@@ -269,7 +275,7 @@ function placeFrame(f) {
 function overlay(f) {
   const s = skill[f];
   const fl = flags[f];
-  const contacts = [fallCode[f] ? `FALLEN (${fallCause(f)})` : '', fl & 2 ? 'pelvis on seat' : '', fl & 4 ? 'hand on prop' : '', fl & 8 ? 'touching a prop' : '']
+  const contacts = [fallCode[f] ? `FALLEN (${fallCause(f)})` : '', fl & 2 ? pelvisLabel(f) : '', fl & 4 ? 'hand on prop' : '', fl & 8 ? 'touching a prop' : '']
     .filter(Boolean).join(', ') || '—';
   ui('info').textContent =
     `t ${time[f].toFixed(2)} s   frame ${f + 1}/${N}\n` +
