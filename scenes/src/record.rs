@@ -414,11 +414,6 @@ impl Recording {
         1.0 / self.header.control_hz
     }
 
-    /// Frame `f`'s fall verdict: the cause once the fall test counted one.
-    pub fn fall_at(&self, f: usize) -> Option<FallCause> {
-        FallCause::from_code(self.fall[f])
-    }
-
     /// The first frame the fall test counted a fall at, with its cause.
     pub fn first_fall(&self) -> Option<(usize, FallCause)> {
         self.fall.iter().enumerate().find_map(|(f, &c)| FallCause::from_code(c).map(|cause| (f, cause)))
