@@ -8,8 +8,9 @@
 #  3. the replay page's npm packages (three.js, inlined into every replay page; playwright-core,
 #     which drives the browser test), by `npm ci` in scenes/web from its committed lock file;
 #  4. Debian's `chromium` for that test (apt-get, as root or through sudo), if /usr/bin/chromium is
-#     missing, and Debian's DejaVu fonts (`fonts-dejavu-core`) for chart text, if no font the
-#     report crate looks for is present.
+#     missing, Debian's `slurm-wlm` and `munge` (a real one-node Slurm for the --slurm test), if
+#     sbatch is missing, and Debian's DejaVu fonts (`fonts-dejavu-core`) for chart text, if no
+#     font the report crate looks for is present.
 # Re-running it is a no-op once everything is in place.
 set -euo pipefail
 
@@ -44,6 +45,21 @@ web_and_browser() {
     else
       echo "setup: ${CHROMIUM:-/usr/bin/chromium} is missing and cannot be installed here (needs apt-get as root or sudo);" \
         "install chromium, or set CHROMIUM to a Chromium binary, for the replay browser test" >&2
+    fi
+  fi
+  # Slurm for `recipe run --slurm` / `ablate --slurm` and their test (tests/slurm.rs starts a
+  # one-node cluster with scripts/slurm-local.sh).
+  if ! command -v sbatch >/dev/null || ! { command -v slurmctld >/dev/null || [ -x /usr/sbin/slurmctld ]; } \
+    || ! { command -v munged >/dev/null || [ -x /usr/sbin/munged ]; }; then
+    local sudo=""
+    [ "$(id -u)" = 0 ] || { command -v sudo >/dev/null && sudo -n true 2>/dev/null && sudo="sudo"; } || true
+    if command -v apt-get >/dev/null && { [ "$(id -u)" = 0 ] || [ -n "$sudo" ]; }; then
+      echo "setup: installing Debian's slurm-wlm and munge for the Slurm test (apt-get install slurm-wlm munge)" >&2
+      $sudo apt-get update -qq >&2
+      DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq slurm-wlm munge >&2
+    else
+      echo "setup: Slurm is missing and cannot be installed here (needs apt-get as root or sudo);" \
+        "install slurm-wlm and munge for --slurm and its test" >&2
     fi
   fi
   # Chart text (report/src/lib.rs FONT_CANDIDATES, or $REPERTOIRE_FONT).

@@ -148,9 +148,24 @@ pub struct Overrides {
     pub trials: Option<usize>,
 }
 
-/// Runs (or only plans) the study in `spec` into `out`, `jobs` runs at a time, then writes the
-/// table and its chart.
-pub fn run(spec: &Path, out: &Path, plan_only: bool, overrides: &Overrides, jobs: usize) -> Result<()> {
+/// How `ablate` runs the study.
+#[derive(Debug, Clone)]
+pub enum How {
+    /// Only write the plan files.
+    PlanOnly,
+    /// Run the plans without a report here, `jobs` at a time, then write the table.
+    Here { jobs: usize },
+    /// Run plan `i` only (a task of the Slurm array).
+    One(usize),
+    /// Submit the plans without a report as a Slurm job array and the table as a job after it;
+    /// `wait` for them.
+    Slurm { options: repertoire_recipe::slurm::SlurmOptions, wait: bool },
+}
+
+/// Runs (or only plans) the study in `spec` into `out` as `how` says, then writes the table and
+/// its chart.
+pub fn run(spec: &Path, out: &Path, overrides: &Overrides, how: How) -> Result<()> {
+    let plan_only = matches!(how, How::PlanOnly);
     let text = std::fs::read_to_string(spec).with_context(|| format!("reading {}", spec.display()))?;
     let ab: Ablation = ron::Options::default()
         .with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME)
@@ -185,7 +200,20 @@ pub fn run(spec: &Path, out: &Path, plan_only: bool, overrides: &Overrides, jobs
             todo.push(p);
         }
     }
-    run_plans(&exe, &todo, jobs)?;
+    match how {
+        How::PlanOnly | How::Here { .. } => {}
+        How::One(i) => {
+            let p =
+                plans.get(i).with_context(|| format!("{}: no run {i} (it plans {})", spec.display(), plans.len()))?;
+            return run_plan(&exe, p, false, None);
+        }
+        How::Slurm { options, wait } => {
+            return submit(&exe, spec, out, overrides, &plans, &options, wait);
+        }
+    }
+    if let How::Here { jobs } = how {
+        run_plans(&exe, &todo, jobs)?;
+    }
     if plan_only {
         println!("{} runs planned under {}", plans.len(), out.join("runs").display());
         return Ok(());
@@ -203,6 +231,91 @@ pub fn run(spec: &Path, out: &Path, plan_only: bool, overrides: &Overrides, jobs
     grouped_bars(&out.join("ablation"), &title, &zones, &bars)?;
     print!("{md}");
     println!("\ntable.md, table.csv and ablation.png/.svg written to {}", out.display());
+    Ok(())
+}
+
+/// The study's runs without a report as one Slurm job array (task `i` runs plan `i`), then a job
+/// after the whole array that runs `ablate` again to gather the table (nothing is left to run
+/// by then).
+fn submit(
+    exe: &Path,
+    spec: &Path,
+    out: &Path,
+    overrides: &Overrides,
+    plans: &[Plan],
+    options: &repertoire_recipe::slurm::SlurmOptions,
+    wait: bool,
+) -> Result<()> {
+    use repertoire_recipe::run::shell_quote;
+    let mut args: Vec<String> =
+        vec!["ablate".into(), spec.display().to_string(), "--out".into(), out.display().to_string()];
+    if !overrides.seeds.is_empty() {
+        args.push(format!("--seeds={}", overrides.seeds.iter().map(u64::to_string).collect::<Vec<_>>().join(",")));
+    }
+    if let Some(n) = overrides.iterations {
+        args.push(format!("--iterations={n}"));
+    }
+    if let Some(n) = overrides.trials {
+        args.push(format!("--trials={n}"));
+    }
+    let line = |extra: &[String]| {
+        std::iter::once(exe.display().to_string())
+            .chain(args.iter().cloned())
+            .chain(extra.iter().cloned())
+            .map(|a| shell_quote(&a))
+            .collect::<Vec<_>>()
+            .join(" ")
+    };
+    let todo: Vec<String> =
+        plans.iter().enumerate().filter(|(_, p)| !p.report.exists()).map(|(i, _)| i.to_string()).collect();
+    let cwd = std::env::current_dir().context("reading the working folder")?;
+    let logs = cwd.join(out).join("slurm");
+    std::fs::create_dir_all(&logs).with_context(|| format!("{}: cannot create", logs.display()))?;
+    let name = repertoire_recipe::slurm::job_prefix(out);
+    let sbatch = |extra: &[String], wrap: String| -> Result<u64> {
+        let o = Command::new("sbatch")
+            .arg("--parsable")
+            .arg(format!("--job-name={name}"))
+            .arg(format!("--chdir={}", cwd.display()))
+            .args(extra)
+            .arg(format!("--wrap={wrap}"))
+            .output()
+            .context("running sbatch (is Slurm installed and SLURM_CONF set? scripts/slurm-local.sh starts a one-node cluster)")?;
+        if !o.status.success() {
+            bail!("sbatch refused the ablation's job: {}", String::from_utf8_lossy(&o.stderr).trim());
+        }
+        let text = String::from_utf8_lossy(&o.stdout);
+        text.trim()
+            .split(';')
+            .next()
+            .and_then(|j| j.parse().ok())
+            .with_context(|| format!("sbatch answered `{}`", text.trim()))
+    };
+    let mut dependency = Vec::new();
+    if !todo.is_empty() {
+        let mut extra =
+            vec![format!("--array={}", todo.join(",")), format!("--output={}", logs.join("run-%a-%A.out").display())];
+        extra.extend(options.args(None));
+        let array = sbatch(&extra, format!("exec {} --run-index \"$SLURM_ARRAY_TASK_ID\"", line(&[])))?;
+        println!("{} runs submitted as job array {array} (logs in {})", todo.len(), logs.display());
+        dependency = vec![format!("--dependency=afterok:{array}"), "--kill-on-invalid-dep=yes".into()];
+    }
+    let mut extra = dependency;
+    extra.push(format!("--output={}", logs.join("table-%j.out").display()));
+    extra.extend(options.args(Some(1)));
+    let table = sbatch(&extra, format!("exec {}", line(&[])))?;
+    println!("job {table} gathers the table into {}", out.display());
+    if wait {
+        repertoire_recipe::slurm::wait(out, std::time::Duration::from_secs(2))?;
+        if !out.join("table.md").exists() {
+            bail!("the ablation's jobs ended without a table; their logs are in {}", logs.display());
+        }
+        print!(
+            "{}",
+            std::fs::read_to_string(out.join("table.md"))
+                .with_context(|| out.join("table.md").display().to_string())?
+        );
+    }
     Ok(())
 }
 

@@ -5,6 +5,7 @@ mod bench;
 mod clip;
 mod latent;
 mod meta;
+mod recipe;
 pub mod replay;
 mod report;
 mod run;
@@ -50,6 +51,11 @@ pub enum Command {
     /// Train and evaluate the meta-controller of a scenario (sitting, warehouse, toss).
     #[command(subcommand)]
     Meta(meta::MetaCommand),
+    /// Recipes: the stages that make a library and its controllers (train, fine-tune on
+    /// handovers, re-pin, evaluate, in rounds), each skipped when done, resumed when
+    /// interrupted, run here or as Slurm jobs.
+    #[command(subcommand)]
+    Recipe(recipe::RecipeCommand),
     /// Write a recording (or every recording in a folder) as a self-contained HTML replay page.
     Replay(replay::ReplayArgs),
     /// Export a recording's motion: BVH (Blender, Maya, game engines) and/or qpos as .npy.
@@ -80,6 +86,18 @@ pub enum Command {
         /// the cores for its rayon pool, unless RAYON_NUM_THREADS is set).
         #[arg(long, default_value_t = 1, value_parser = crate::cli::at_least_one)]
         jobs: usize,
+        /// Submit the runs that have no report as one Slurm job array (a task per variant ×
+        /// seed), and a job after it that gathers the table.
+        #[arg(long, conflicts_with = "plan_only")]
+        slurm: bool,
+        #[command(flatten)]
+        sbatch: recipe::SbatchArgs,
+        /// With --slurm: wait until the jobs have ended, then check the table was written.
+        #[arg(long, requires = "slurm")]
+        wait: bool,
+        /// Run only the plan with this index (what each task of the Slurm array runs).
+        #[arg(long, hide = true)]
+        run_index: Option<usize>,
     },
     /// Gather a run's charts (PNG + SVG) and tables into DIR/report/index.md and index.html:
     /// learning curves, curriculum schedule, success map, transition matrices, ablation table.
@@ -119,8 +137,17 @@ pub fn positive_f64(s: &str) -> std::result::Result<f64, String> {
 /// The command line as a manifest records it: `repertoire` and the arguments, each quoted for
 /// a POSIX shell where it needs it, so that it re-runs as written whatever the binary was called
 /// or where it lay (`target/release/repertoire`, a copy in `/tmp`).
+///
+/// Paths in the working folder or the repository are written relative to it
+/// ([`repertoire_files::portable`]), and a command a recipe stage runs names the stage after a
+/// shell comment (`  # recipe recipes/sit.ron#handover/r2/finetune`).
 pub fn invocation() -> String {
-    invocation_of(std::env::args().skip(1))
+    let mut line = invocation_of(std::env::args().skip(1).map(|a| repertoire_files::portable(&a)));
+    if let Ok(stage) = std::env::var(repertoire_recipe::run::STAGE_ENV) {
+        line.push_str("  # recipe ");
+        line.push_str(&repertoire_files::portable(&stage));
+    }
+    line
 }
 
 fn invocation_of(args: impl Iterator<Item = String>) -> String {
@@ -149,11 +176,19 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Skill(cmd) => skill::run(cmd),
         Command::Meta(cmd) => meta::run(cmd),
         Command::Latent(cmd) => latent::run(cmd),
+        Command::Recipe(cmd) => recipe::run(cmd),
         Command::Replay(args) => replay::replay(args),
         Command::Export(args) => replay::export(args),
         Command::FallCheck(args) => replay::fall_check(args),
-        Command::Ablate { spec, out, plan_only, seeds, iterations, trials, jobs } => {
-            ablate::run(&spec, &out, plan_only, &ablate::Overrides { seeds, iterations, trials }, jobs)
+        Command::Ablate { spec, out, plan_only, seeds, iterations, trials, jobs, slurm, sbatch, wait, run_index } => {
+            let overrides = ablate::Overrides { seeds, iterations, trials };
+            let how = match (slurm, run_index) {
+                (true, _) => ablate::How::Slurm { options: sbatch.options()?, wait },
+                (false, Some(i)) => ablate::How::One(i),
+                (false, None) if plan_only => ablate::How::PlanOnly,
+                (false, None) => ablate::How::Here { jobs },
+            };
+            ablate::run(&spec, &out, &overrides, how)
         }
         Command::Report { dir } => {
             let page = report::run(&dir)?;

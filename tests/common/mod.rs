@@ -42,3 +42,31 @@ pub fn ok(out: &std::process::Output) -> String {
     assert!(out.status.success(), "exit {:?}\n{text}\n{}", out.status, String::from_utf8_lossy(&out.stderr));
     text
 }
+
+/// The tiny recipe, working in `dir/work`, its fine-tunes taking `fraction` of their episodes
+/// from the pool.
+pub fn tiny_recipe(dir: &Path, fraction: &str) -> PathBuf {
+    let text = format!(
+        r#"(
+    about: "a tiny walk: trained, its pool evaluated, fine-tuned from its own end poses in two rounds",
+    work: "{work}",
+    vars: {{"fraction": "{fraction}"}},
+    stages: [
+        Run(name: "walk", args: ["skill", "train", "skills/skill/specs/walk.ron", "--library", "{{work}}/lib", "--run-dir", "{{work}}/runs/walk",
+            "--iterations", "2", "--envs", "2", "--serial", "--checkpoint-every", "1"], writes: ["{{work}}/lib/walk"], resume: "{{work}}/runs/walk"),
+        Run(name: "pool", args: ["skill", "eval", "skills/skill/specs/walk.ron", "--library", "{{work}}/lib", "--trials", "4", "--batch", "2"],
+            writes: ["{{work}}/lib/walk/end_poses.ron"]),
+        Rounds(name: "tune", max: 2, stages: [
+            Run(name: "finetune", args: ["skill", "finetune", "skills/skill/specs/walk.ron", "--from", "walk", "--fraction", "{{fraction}}",
+                "--library", "{{work}}/lib", "--run-dir", "{{work}}/runs/tune-{{round}}", "--iterations", "2", "--envs", "2", "--serial",
+                "--checkpoint-every", "1"],
+                writes: ["{{work}}/lib/walk"], resume: "{{work}}/runs/tune-{{round}}"),
+        ]),
+    ],
+)"#,
+        work = dir.join("work").display()
+    );
+    let path = dir.join("tiny.ron");
+    std::fs::write(&path, text).unwrap();
+    path
+}
