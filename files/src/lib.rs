@@ -54,3 +54,80 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), WriteError> {
     }
     commit(&tmp, path)
 }
+
+/// `text` with every absolute path in it (a word beginning with `/`) that lies in the working
+/// folder or in this repository written relative to it, `..` folded: what manifests, lineages
+/// and reports record, so that they name no folder of the machine they were made on.
+/// (`/home/me/repertoire/skills/skill/../../third_party/clips/walk.txt (map m)` →
+/// `third_party/clips/walk.txt (map m)`.) Paths elsewhere are left as they are.
+pub fn portable(text: &str) -> String {
+    let cwd = std::env::current_dir().ok().map(normal);
+    let repo = normal(Path::new(env!("CARGO_MANIFEST_DIR")).join(".."));
+    let mut out = String::with_capacity(text.len());
+    let mut word = String::new();
+    let flush = |word: &mut String, out: &mut String| {
+        out.push_str(&portable_word(word, cwd.as_deref(), &repo));
+        word.clear();
+    };
+    for c in text.chars() {
+        if c.is_whitespace() || c == ',' || c == '=' || c == '"' || c == '\'' {
+            flush(&mut word, &mut out);
+            out.push(c);
+        } else {
+            word.push(c);
+        }
+    }
+    flush(&mut word, &mut out);
+    out
+}
+
+/// [`portable`] of a path.
+pub fn portable_path(path: &Path) -> String {
+    portable(&path.display().to_string())
+}
+
+fn portable_word(word: &str, cwd: Option<&Path>, repo: &Path) -> String {
+    if !word.starts_with('/') {
+        return word.to_string();
+    }
+    let p = normal(PathBuf::from(word));
+    for base in cwd.into_iter().chain([repo]) {
+        if let Ok(rel) = p.strip_prefix(base) {
+            let rel = rel.display().to_string();
+            return if rel.is_empty() { ".".into() } else { rel };
+        }
+    }
+    word.to_string()
+}
+
+/// `p` with `.` dropped and `..` folded where it can be.
+fn normal(p: PathBuf) -> PathBuf {
+    let mut out = PathBuf::new();
+    for c in p.components() {
+        match c {
+            std::path::Component::CurDir => {}
+            std::path::Component::ParentDir if out.file_name().is_some() => {
+                out.pop();
+            }
+            c => out.push(c),
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod portable_tests {
+    use super::*;
+
+    #[test]
+    fn paths_in_the_repository_or_working_folder_become_relative_and_others_stay() {
+        let repo = normal(Path::new(env!("CARGO_MANIFEST_DIR")).join(".."));
+        let text = format!(
+            "{}/skills/skill/../../third_party/clips/walk.txt (map m) --from {}/runs/h.ron,stand --out=/elsewhere/x",
+            repo.display(),
+            repo.display()
+        );
+        assert_eq!(portable(&text), "third_party/clips/walk.txt (map m) --from runs/h.ron,stand --out=/elsewhere/x");
+        assert_eq!(portable("repertoire skill train a.ron"), "repertoire skill train a.ron");
+    }
+}

@@ -446,7 +446,7 @@ pub fn train(
     let policy = ActingPolicy::from_ppo(&ppo);
     policy.save(&opts.out.join(WEIGHTS_FILE)).map_err(|e| MetaError::Invalid(e.to_string()))?;
     let manifest = LatentMetaManifest {
-        scenario: setup.model.scenario.path.display().to_string(),
+        scenario: repertoire_files::portable_path(&setup.model.scenario.path),
         latent_model: setup.latent_dir.display().to_string(),
         latent_fnv1a: setup.policy.manifest.weights_fnv1a,
         latent_dim: setup.latent_dim(),

@@ -287,7 +287,7 @@ pub(crate) fn save_controller<E: Env>(
         std::fs::remove_file(&critic).map_err(|e| MetaError::Invalid(format!("{}: {e}", critic.display())))?;
     }
     let manifest = MetaManifest {
-        scenario: setup.model.scenario.path.display().to_string(),
+        scenario: repertoire_files::portable_path(&setup.model.scenario.path),
         skills: setup.skills.iter().map(|s| s.name.clone()).collect(),
         skill_weights: setup.skills.iter().map(|s| s.policy_fnv1a).collect(),
         body_hash: setup.model.body.content_hash(),

@@ -240,6 +240,9 @@ pub fn prepare(
         spec.spec.ppo.critic_warmup = n;
     }
     if let Some((from, fraction, speed)) = finetune {
+        // Pools named by path are recorded relative to the working folder (manifests name no
+        // folder of the machine).
+        let from = from.iter().map(|f| repertoire_files::portable(f)).collect();
         spec.spec.init = Init::Pools { from, fraction, speed };
         spec.spec.init.check().map_err(|m| anyhow::anyhow!("skill finetune --from/--fraction/--speed: {m}"))?;
     }

@@ -252,7 +252,7 @@ impl SkillSetup {
         ClipRecord {
             name: self.clip.name.clone(),
             hash: self.clip.content_hash(),
-            origin: self.clip.origin.clone(),
+            origin: repertoire_files::portable(&self.clip.origin),
             frames: r.frames(),
             cycle_joints: table(&r.joints),
             cycle_joint_vel: table(&r.joint_vel),

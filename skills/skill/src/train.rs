@@ -348,7 +348,7 @@ pub fn train_in<E: Env>(
         format: LIBRARY_FORMAT,
         name: setup.spec.spec.name.clone(),
         body_hash: setup.model.body.content_hash(),
-        body_origin: setup.model.body.mjcf_path.display().to_string(),
+        body_origin: repertoire_files::portable_path(&setup.model.body.mjcf_path),
         observation: (*setup.layout).clone(),
         extra_obs: ppo.envs.obs_dim() - setup.layout.size,
         act_dim: ppo.envs.act_dim(),

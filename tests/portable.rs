@@ -1,0 +1,91 @@
+//! Committed artifacts are portable: no manifest, lineage, report, recipe or page in the
+//! repository names a folder of the machine it was made on (`/tmp/…`, `/home/…`, `/work/…`, or
+//! this checkout's own absolute path). Where an input lay outside the repository and was not
+//! kept, lineages write `<scratch>/…`; the recipes re-make it.
+
+use std::path::{Path, PathBuf};
+
+/// Folders whose every text file is checked.
+const CHECKED: [&str; 8] = ["skills", "meta", "recipes", "docs", "scenes", "report", "curriculum", "mocap"];
+
+fn files(dir: &Path, out: &mut Vec<PathBuf>) {
+    let Ok(entries) = std::fs::read_dir(dir) else { return };
+    for e in entries.flatten() {
+        let p = e.path();
+        let name = e.file_name();
+        if name == "node_modules" || name == "target" || name.to_string_lossy().starts_with('.') {
+            continue;
+        }
+        if p.is_dir() {
+            files(&p, out);
+        } else {
+            out.push(p);
+        }
+    }
+}
+
+/// The absolute paths in `text`: a `/` after a space, quote, bracket, `=`, `,`, `:` or
+/// backquote (or at a line start) followed by a top folder where machines keep their files.
+fn absolute_paths(text: &str, own: &str) -> Vec<String> {
+    let mut found = Vec::new();
+    for (n, line) in text.lines().enumerate() {
+        if line.contains(own) {
+            found.push(format!("line {}: {}", n + 1, line.trim()));
+            continue;
+        }
+        let bytes = line.as_bytes();
+        for (i, _) in line.match_indices('/') {
+            let before_ok = i == 0 || b" \"'(=,:`".contains(&bytes[i - 1]);
+            let rest = &line[i + 1..];
+            let top =
+                ["tmp/", "work/", "home/", "root/", "Users/", "mnt/", "scratch/"].iter().any(|t| rest.starts_with(t));
+            if before_ok && top {
+                found.push(format!("line {}: {}", n + 1, line.trim().chars().take(200).collect::<String>()));
+                break;
+            }
+        }
+    }
+    found
+}
+
+#[test]
+fn no_committed_file_names_an_absolute_path() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let own = root.display().to_string();
+    let mut all = Vec::new();
+    for d in CHECKED {
+        files(&root.join(d), &mut all);
+    }
+    for f in ["README.md", "CHANGELOG.md"] {
+        all.push(root.join(f));
+    }
+    // What git ignores (a user's own evaluations inside the library folder) is not committed.
+    if let Ok(out) = std::process::Command::new("git")
+        .args(["ls-files", "--others", "--ignored", "--exclude-standard"])
+        .current_dir(root)
+        .output()
+        && out.status.success()
+    {
+        let ignored: std::collections::HashSet<PathBuf> =
+            String::from_utf8_lossy(&out.stdout).lines().map(|l| root.join(l)).collect();
+        all.retain(|f| !ignored.contains(f));
+    }
+    assert!(all.len() > 100, "the checked folders hold the library, results and docs: {} files", all.len());
+    let mut bad = Vec::new();
+    for f in &all {
+        let Ok(text) = std::fs::read_to_string(f) else { continue }; // binary files
+        for hit in absolute_paths(&text, &own) {
+            bad.push(format!("{}: {hit}", f.strip_prefix(root).unwrap_or(f).display()));
+        }
+    }
+    assert!(bad.is_empty(), "absolute paths in committed files:\n{}", bad.join("\n"));
+}
+
+#[test]
+fn the_check_finds_what_it_looks_for() {
+    let own = "/src/checkout";
+    assert_eq!(absolute_paths("command: \"repertoire x --library /tmp/lib\"", own).len(), 1);
+    assert_eq!(absolute_paths("/home/me/x", own).len(), 1);
+    assert_eq!(absolute_paths("see /src/checkout/skills", own).len(), 1);
+    assert!(absolute_paths("skills/library/tmp/x and <scratch>/exp/B and /usr/bin/chromium", own).is_empty());
+}
