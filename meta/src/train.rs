@@ -584,8 +584,10 @@ impl<'a> Schedule<'a> {
             let path = opts.run_dir.join("curriculum.csv");
             let fail = |e: std::io::Error| MetaError::Invalid(format!("{}: {e}", path.display()));
             std::fs::create_dir_all(&opts.run_dir).map_err(fail)?;
-            let mut f = std::fs::File::create(&path).map_err(fail)?;
-            writeln!(f, "{CURRICULUM_HEADER}").map_err(fail)?;
+            // The header lands whole (temporary file renamed into place); rows are appended.
+            repertoire_files::write_atomic(&path, format!("{CURRICULUM_HEADER}\n").as_bytes())
+                .map_err(|e| fail(e.source))?;
+            let f = std::fs::OpenOptions::new().append(true).open(&path).map_err(fail)?;
             file = Some((f, path));
         }
         Ok(Schedule { curriculum, zones, file })

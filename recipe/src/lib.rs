@@ -111,7 +111,12 @@ pub struct RunItem {
     pub args: Vec<String>,
     /// What the command writes, inside the work folder (files or folders): kept by content hash
     /// when the stage ends, restored when a stage after it runs again.
+    #[serde(default)]
     pub writes: Vec<String>,
+    /// A file (inside the work folder) that gets the command's standard output as well as the
+    /// terminal: an evaluation's table. It counts as written.
+    #[serde(default)]
+    pub stdout: Option<String>,
     /// Inputs the arguments do not name (the clip a spec reads), part of the identity.
     #[serde(default)]
     pub reads: Vec<String>,
@@ -192,6 +197,8 @@ pub struct Stage {
     pub names: Vec<PathBuf>,
     /// Its run folder, for resuming.
     pub resume: Option<PathBuf>,
+    /// The file its standard output goes to as well.
+    pub stdout: Option<PathBuf>,
     /// Threads.
     pub cpus: Option<usize>,
     /// The rounds group and round (from 1) it belongs to.
@@ -347,12 +354,13 @@ impl Plan {
         Ok(plan)
     }
 
-    /// The graph of the stages (an edge from each stage to each that follows it).
+    /// The graph of the stages: an edge from each stage to each that follows it directly
+    /// ([`Plan::direct`]).
     pub fn graph(&self) -> DiGraph<String, ()> {
         let mut g = DiGraph::new();
         let nodes: Vec<_> = self.stages.iter().map(|s| g.add_node(s.id.clone())).collect();
-        for (i, s) in self.stages.iter().enumerate() {
-            for &d in &s.deps {
+        for i in 0..self.stages.len() {
+            for d in self.direct(i) {
                 g.add_edge(nodes[d], nodes[i], ());
             }
         }
@@ -368,6 +376,13 @@ impl Plan {
                 self.stages.iter().map(|s| s.id.as_str()).collect::<Vec<_>>().join(", ")
             ),
         })
+    }
+
+    /// The stages `i` follows that no other stage it follows comes after (what a graph drawing
+    /// shows).
+    pub fn direct(&self, i: usize) -> Vec<usize> {
+        let deps = &self.stages[i].deps;
+        deps.iter().copied().filter(|&d| !deps.iter().any(|&e| e != d && self.ancestors(e).contains(&d))).collect()
     }
 
     /// Every stage `i` follows, directly or through others, in order.
@@ -432,6 +447,7 @@ fn stage_of(
         sources: vec![],
         names: vec![],
         resume: None,
+        stdout: None,
         cpus: None,
         round,
         deps: vec![],
@@ -455,8 +471,11 @@ fn stage_of(
             if c.args.is_empty() {
                 return Err(at("`args` is empty".into()));
             }
-            if c.writes.is_empty() {
-                return Err(at("`writes` is empty: name what the command makes, so later stages can follow it".into()));
+            if c.writes.is_empty() && c.stdout.is_none() {
+                return Err(at(
+                    "it writes nothing: name what the command makes (`writes`, or `stdout` for a table it prints), so later stages can follow it"
+                        .into(),
+                ));
             }
             let args = c.args.iter().map(|a| f(a)).collect::<std::result::Result<Vec<_>, _>>()?;
             for a in &args {
@@ -485,6 +504,12 @@ fn stage_of(
                 let p = inside(normal(PathBuf::from(f(d)?)), "`resume`")?;
                 stage.resume = Some(p);
             }
+            if let Some(o) = &c.stdout {
+                let p = inside(normal(PathBuf::from(f(o)?)), "`stdout`")?;
+                stage.names.push(p.clone());
+                stage.writes.push(p.clone());
+                stage.stdout = Some(p);
+            }
             if c.cpus == Some(0) {
                 return Err(at("`cpus` must be at least 1".into()));
             }
@@ -501,6 +526,9 @@ fn stage_of(
             }
             if let Some(w) = &c.resume {
                 template.push(format!("resume:{}", tf(w)?));
+            }
+            if let Some(w) = &c.stdout {
+                template.push(format!("stdout:{}", tf(w)?));
             }
             stage.template = template;
             stage.action = Action::Run { args };
@@ -630,7 +658,8 @@ mod tests {
         assert_eq!(p.stages[6].deps, [5]);
         assert_eq!(p.stages[5].resume.as_deref(), Some(Path::new("w/runs/ft-2")));
         assert_eq!(p.ancestors(6), [0, 1, 3, 5]);
-        assert_eq!(p.graph().edge_count(), 1 + 2 + 1 + 3 + 1);
+        assert_eq!(p.direct(5), [3], "drawn: round 2 after round 1, which comes after the rest");
+        assert_eq!(p.graph().edge_count(), 5);
     }
 
     #[test]

@@ -69,10 +69,14 @@ impl<'a> Runner<'a> {
     /// Works out whether stage `i` runs and its identity (every stage before it settled first).
     pub fn settle(&mut self, i: usize) -> Result<()> {
         let stage = &self.plan.stages[i];
-        let active = match stage.round {
+        let mut active = match stage.round {
             None | Some((_, 1)) => Some(true),
             Some((g, r)) => self.goes_on(g, r - 1)?,
         };
+        // A stage after rounds not decided yet is not known either (its inputs depend on them).
+        if active == Some(true) && stage.deps.iter().any(|&d| self.active[d].is_none()) {
+            active = None;
+        }
         self.active[i] = active;
         if active == Some(true) {
             let id = self.compute_identity(i)?;
@@ -326,7 +330,40 @@ impl<'a> Runner<'a> {
                 if let (Some(t), None) = (threads, std::env::var_os("RAYON_NUM_THREADS")) {
                     cmd.env("RAYON_NUM_THREADS", t);
                 }
-                let status = cmd.status().map_err(|e| err(format!("cannot start {}: {e}", self.exe.display())))?;
+                let status = match &stage.stdout {
+                    None => cmd.status().map_err(|e| err(format!("cannot start {}: {e}", self.exe.display())))?,
+                    Some(file) => {
+                        // The output on the terminal as it comes, and into the file whole at the end.
+                        use std::io::{BufRead, Write};
+                        let mut child = cmd
+                            .stdout(std::process::Stdio::piped())
+                            .spawn()
+                            .map_err(|e| err(format!("cannot start {}: {e}", self.exe.display())))?;
+                        let mut text = String::new();
+                        for line in std::io::BufReader::new(child.stdout.take().expect("piped")).lines() {
+                            let line = line.map_err(|e| err(format!("reading its output: {e}")))?;
+                            println!("{line}");
+                            let _ = std::io::stdout().flush();
+                            text.push_str(&line);
+                            text.push('\n');
+                        }
+                        let status = child.wait().map_err(|e| err(format!("waiting for it: {e}")))?;
+                        if status.success() {
+                            if let Some(parent) = file.parent().filter(|p| !p.as_os_str().is_empty()) {
+                                std::fs::create_dir_all(parent).map_err(io_err(parent, "cannot create"))?;
+                            }
+                            let head = format!("`{command}`\n\n");
+                            repertoire_files::write_atomic(file, (head + &text).as_bytes()).map_err(|e| {
+                                RecipeError::Io {
+                                    path: e.path.display().to_string(),
+                                    message: e.action,
+                                    source: e.source,
+                                }
+                            })?;
+                        }
+                        status
+                    }
+                };
                 if !status.success() {
                     return Err(err(format!(
                         "`{command}` failed ({status}); run the recipe again to {}",

@@ -232,7 +232,7 @@ fn plan_table(runner: &Runner) -> Result<String> {
             Standing::Undecided => "after the round before decides".into(),
         };
         *counts.entry(would.split(' ').next().unwrap_or("").to_string()).or_insert(0) += 1;
-        let follows = s.deps.iter().map(|&d| plan.stages[d].id.as_str()).collect::<Vec<_>>().join(", ");
+        let follows = plan.direct(i).iter().map(|&d| plan.stages[d].id.as_str()).collect::<Vec<_>>().join(", ");
         let _ = writeln!(
             out,
             "| {} | {} | {} | {} | {} | `{}` |",

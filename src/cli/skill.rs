@@ -233,6 +233,25 @@ pub fn prepare(
         );
     }
     let mut spec = SpecFile::load(spec_path)?;
+    let started = RunStart::of(&spec, spec_path, finetune.as_ref(), prior.as_ref(), &a)?;
+    let mut a = a;
+    let resumed_run = match &a.resume {
+        Some(stem) => {
+            let (run, was) = started.check_resume(stem, &a)?;
+            // Flags left out take the run's.
+            if let Some(was) = was {
+                a.seed.get_or_insert(was.seed);
+                a.envs.get_or_insert(was.envs);
+                a.learning_rate.get_or_insert(was.learning_rate);
+                a.critic_warmup.get_or_insert(was.critic_warmup);
+                a.explore_log_std = a.explore_log_std.or(was.explore_log_std);
+                a.max_log_std = a.max_log_std.or(was.max_log_std);
+                a.fresh_critic |= was.fresh_critic;
+            }
+            Some(run)
+        }
+        None => None,
+    };
     if let Some(lr) = a.learning_rate {
         spec.spec.ppo.learning_rate = lr;
     }
@@ -249,7 +268,11 @@ pub fn prepare(
     let setup = SkillSetup::new(spec, &a.library)?;
     let s = &setup.spec.spec;
     let seed = a.seed.unwrap_or(s.ppo.seed);
-    let run_dir = a.run_dir.unwrap_or_else(|| default_run_dir(Path::new("runs"), &s.name, seed));
+    // A resumed run goes on in the checkpoint's run directory.
+    let run_dir = a.run_dir.or(resumed_run).unwrap_or_else(|| default_run_dir(Path::new("runs"), &s.name, seed));
+    if a.resume.is_none() {
+        started.write(&run_dir)?;
+    }
     tracing::info!(
         skill = %s.name,
         clip = %setup.clip.origin,
@@ -275,6 +298,140 @@ pub fn prepare(
         command,
     };
     Ok((setup, opts))
+}
+
+/// What a skill training run was started with (`RUN/skill.ron`), so that `--resume` can refuse a
+/// checkpoint of another skill or spec, or flags that differ from the run's.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+struct RunStart {
+    skill: String,
+    /// The spec file (portable path) and the FNV-1a hash of its text.
+    spec: String,
+    spec_fnv1a: u64,
+    /// `train`, `train --warm-start`, `train --warm-start-from NAME` or `finetune`.
+    start: String,
+    /// A fine-tune's pools, share and speed range.
+    pools: Option<(Vec<String>, f64, (f64, f64))>,
+    seed: u64,
+    envs: usize,
+    learning_rate: f64,
+    critic_warmup: usize,
+    explore_log_std: Option<f32>,
+    max_log_std: Option<f32>,
+    fresh_critic: bool,
+}
+
+impl RunStart {
+    fn of(
+        spec: &SpecFile,
+        path: &Path,
+        finetune: Option<&(Vec<String>, f64, (f64, f64))>,
+        prior: Option<&Option<String>>,
+        a: &TrainArgs,
+    ) -> Result<RunStart> {
+        let text = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+        let spec_fnv1a = text.iter().fold(0xcbf29ce484222325u64, |h, &b| (h ^ b as u64).wrapping_mul(0x100000001b3));
+        let s = &spec.spec;
+        let start = match (finetune, prior) {
+            (Some(_), _) => "finetune".to_string(),
+            (None, Some(Some(n))) => format!("train --warm-start-from {n}"),
+            (None, Some(None)) => "train --warm-start".into(),
+            (None, None) => "train".into(),
+        };
+        Ok(RunStart {
+            skill: s.name.clone(),
+            spec: repertoire_files::portable_path(path),
+            spec_fnv1a,
+            start,
+            pools: finetune.map(|(f, x, v)| (f.iter().map(|p| repertoire_files::portable(p)).collect(), *x, *v)),
+            seed: a.seed.unwrap_or(s.ppo.seed),
+            envs: a.envs.unwrap_or(s.ppo.num_envs),
+            learning_rate: a.learning_rate.unwrap_or(s.ppo.learning_rate),
+            critic_warmup: a.critic_warmup.unwrap_or(s.ppo.critic_warmup),
+            explore_log_std: a.explore_log_std,
+            max_log_std: a.max_log_std,
+            fresh_critic: a.fresh_critic,
+        })
+    }
+
+    fn write(&self, run_dir: &Path) -> Result<()> {
+        std::fs::create_dir_all(run_dir).with_context(|| format!("{}: cannot create", run_dir.display()))?;
+        let text = ron::ser::to_string_pretty(self, ron::ser::PrettyConfig::default())?;
+        repertoire_files::write_atomic(&run_dir.join("skill.ron"), text.as_bytes())?;
+        Ok(())
+    }
+
+    /// The run directory of checkpoint `stem` and what the run started with, once that allows this
+    /// command to resume it: the same skill, spec and start, and no flag set to another value
+    /// than the run's (flags left out take the run's). A run from before runs recorded this
+    /// (no `skill.ron`) is resumed unchecked, with a warning.
+    fn check_resume(&self, stem: &Path, a: &TrainArgs) -> Result<(PathBuf, Option<RunStart>)> {
+        let run = stem.parent().and_then(Path::parent).filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        if let Some(dir) = &a.run_dir
+            && std::fs::canonicalize(dir).ok() != std::fs::canonicalize(run).ok()
+        {
+            bail!(
+                "--resume {}: its run directory is {}, not --run-dir {} (leave --run-dir out to go on there)",
+                stem.display(),
+                run.display(),
+                dir.display()
+            );
+        }
+        let file = run.join("skill.ron");
+        let Ok(text) = std::fs::read_to_string(&file) else {
+            tracing::warn!(run = %run.display(), "the run has no skill.ron (made before runs recorded what they started with): resuming unchecked");
+            return Ok((run.to_path_buf(), None));
+        };
+        let was: RunStart = ron::from_str(&text)
+            .map_err(|e| anyhow::anyhow!("{}:{}: {}", file.display(), e.span.start.line, e.code))?;
+        let refuse = |what: String| -> Result<(PathBuf, Option<RunStart>)> {
+            bail!("--resume {}: {what} ({}); start a new run instead", stem.display(), file.display())
+        };
+        if was.skill != self.skill {
+            return refuse(format!("the checkpoint trains `{}`, not `{}`", was.skill, self.skill));
+        }
+        if was.spec_fnv1a != self.spec_fnv1a {
+            return refuse(format!(
+                "it was started from another spec ({} as it was then), not {} as it is now",
+                was.spec, self.spec
+            ));
+        }
+        if was.start != self.start || was.pools != self.pools {
+            return refuse(format!(
+                "it was started as `{}`{}, not `{}`{}",
+                was.start,
+                was.pools.as_ref().map_or(String::new(), |p| format!(" from {}", p.0.join(","))),
+                self.start,
+                self.pools.as_ref().map_or(String::new(), |p| format!(" from {}", p.0.join(",")))
+            ));
+        }
+        let mut clash = Vec::new();
+        if a.seed.is_some_and(|s| s != was.seed) {
+            clash.push(format!("--seed {} (the run's: {})", self.seed, was.seed));
+        }
+        if a.envs.is_some_and(|n| n != was.envs) {
+            clash.push(format!("--envs {} (the run's: {})", self.envs, was.envs));
+        }
+        if a.learning_rate.is_some_and(|x| x != was.learning_rate) {
+            clash.push(format!("--learning-rate {} (the run's: {})", self.learning_rate, was.learning_rate));
+        }
+        if a.critic_warmup.is_some_and(|n| n != was.critic_warmup) {
+            clash.push(format!("--critic-warmup {} (the run's: {})", self.critic_warmup, was.critic_warmup));
+        }
+        if a.explore_log_std.is_some() && a.explore_log_std != was.explore_log_std {
+            clash.push(format!("--explore-log-std {:?} (the run's: {:?})", a.explore_log_std, was.explore_log_std));
+        }
+        if a.max_log_std.is_some() && a.max_log_std != was.max_log_std {
+            clash.push(format!("--max-log-std {:?} (the run's: {:?})", a.max_log_std, was.max_log_std));
+        }
+        if a.fresh_critic != was.fresh_critic && a.fresh_critic {
+            clash.push("--fresh-critic (the run continued its critic)".into());
+        }
+        if !clash.is_empty() {
+            return refuse(format!("{} differ from the run's; leave them out to resume", clash.join(", ")));
+        }
+        Ok((run.to_path_buf(), Some(was)))
+    }
 }
 
 /// The table of a finished training run and where it went.

@@ -49,7 +49,7 @@ impl RunDir {
         };
         let text =
             ron::ser::to_string_pretty(&info, ron::ser::PrettyConfig::default()).map_err(std::io::Error::other)?;
-        std::fs::write(path.join("run.ron"), text)?;
+        repertoire_files::write_atomic(&path.join("run.ron"), text.as_bytes()).map_err(|e| e.source)?;
         let open = |name: &str| OpenOptions::new().create(true).append(true).open(path.join(name));
         let csv = open("metrics.csv")?;
         let wrote_header = csv.metadata()?.len() > 0;
