@@ -99,6 +99,11 @@ pub struct CopyItem {
     pub from: String,
     /// Where it goes (inside the work folder).
     pub to: String,
+    /// Only these entries of the folder `from` (skill folders of a library: `["walk_to",
+    /// "stand", "sit"]`); default: all of it. Only they are part of the identity, so what else
+    /// changes in `from` (an evaluation written into the library) does not rerun the recipe.
+    #[serde(default)]
+    pub only: Vec<String>,
 }
 
 /// [`Item::Run`].
@@ -173,8 +178,8 @@ fn all_zones() -> String {
 /// What a stage does.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize)]
 pub enum Action {
-    /// Copy `from` to `to`.
-    Copy { from: PathBuf, to: PathBuf },
+    /// Copy `from` to `to` (only the entries `only` of the folder, when given).
+    Copy { from: PathBuf, to: PathBuf, only: Vec<String> },
     /// Run `repertoire ARGS`.
     Run { args: Vec<String> },
 }
@@ -457,15 +462,23 @@ fn stage_of(
         Item::Copy(c) => {
             let from = normal(PathBuf::from(f(&c.from)?));
             let to = inside(normal(PathBuf::from(f(&c.to)?)), "`to`")?;
-            if from.starts_with(work) {
-                stage.names.push(from.clone());
-            } else {
-                stage.sources.push(from.clone());
+            if c.only.iter().any(|o| o.is_empty() || o.contains("..") || Path::new(o).is_absolute()) {
+                return Err(at("`only` names entries of the folder `from` (no `..`, no absolute paths)".into()));
+            }
+            let parts: Vec<PathBuf> =
+                if c.only.is_empty() { vec![from.clone()] } else { c.only.iter().map(|o| from.join(o)).collect() };
+            for p in parts {
+                if from.starts_with(work) {
+                    stage.names.push(p);
+                } else {
+                    stage.sources.push(p);
+                }
             }
             stage.template = vec![tf(&c.from)?, tf(&c.to)?];
+            stage.template.extend(c.only.iter().map(|o| format!("only:{o}")));
             stage.writes.push(to.clone());
             stage.names.push(to.clone());
-            stage.action = Action::Copy { from, to };
+            stage.action = Action::Copy { from, to, only: c.only.clone() };
         }
         Item::Run(c) => {
             if c.args.is_empty() {

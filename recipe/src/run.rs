@@ -241,7 +241,10 @@ impl<'a> Runner<'a> {
     /// The command line stage `i` runs, as a shell would take it.
     pub fn command(&self, i: usize) -> String {
         match &self.plan.stages[i].action {
-            Action::Copy { from, to } => format!("copy {} {}", from.display(), to.display()),
+            Action::Copy { from, to, only } if only.is_empty() => format!("copy {} {}", from.display(), to.display()),
+            Action::Copy { from, to, only } => {
+                format!("copy {}/{{{}}} {}", from.display(), only.join(","), to.display())
+            }
             Action::Run { args } => {
                 let mut s = String::from("repertoire");
                 for a in args {
@@ -290,6 +293,11 @@ impl<'a> Runner<'a> {
             tracing::info!(stage = %stage.id, files = restored, "restored what the stages before it left");
         }
         if resume.is_none() {
+            // A stage that starts over starts from an empty run folder (no checkpoints or
+            // metrics of a run with other inputs).
+            if let Some(dir) = stage.resume.as_ref().filter(|d| d.exists()) {
+                std::fs::remove_dir_all(dir).map_err(io_err(dir, "cannot clear the run folder"))?;
+            }
             for w in &stage.writes {
                 for (_, f) in files_under(w)? {
                     if !expected.contains_key(&f.to_string_lossy().replace('\\', "/")) {
@@ -318,7 +326,15 @@ impl<'a> Runner<'a> {
         );
         tracing::info!(stage = %stage.id, identity = %identity, command = %command, "stage starts");
         match &stage.action {
-            Action::Copy { from, to } => copy_tree(from, to)?,
+            Action::Copy { from, to, only } if only.is_empty() => copy_tree(from, to)?,
+            Action::Copy { from, to, only } => {
+                if to.exists() {
+                    std::fs::remove_dir_all(to).map_err(io_err(to, "cannot replace"))?;
+                }
+                for o in only {
+                    copy_tree(&from.join(o), &to.join(o))?;
+                }
+            }
             Action::Run { args } => {
                 let mut args = args.clone();
                 if let Some(stem) = &resume {
@@ -609,5 +625,36 @@ mod round_tests {
         let e = r.run_stage(1, "local").unwrap_err().to_string();
         assert!(e.contains("follows `a`, which has not finished"), "{e}");
         assert!(!work.join("b").exists());
+    }
+}
+
+#[cfg(test)]
+mod copy_tests {
+    use super::*;
+
+    #[test]
+    fn a_copy_of_some_entries_sees_only_them() {
+        let dir = std::env::temp_dir().join(format!("recipe-unit-{}-only", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        for f in ["lib/a/x", "lib/b/y", "lib/meta/eval/report.json"] {
+            std::fs::create_dir_all(dir.join(f).parent().unwrap()).unwrap();
+            std::fs::write(dir.join(f), f).unwrap();
+        }
+        let text = format!(
+            r#"(work: "{0}/work", stages: [Copy(name: "lib", from: "{0}/lib", to: "{{work}}/lib", only: ["a", "b"])])"#,
+            dir.display()
+        );
+        std::fs::write(dir.join("r.ron"), text).unwrap();
+        let plan = Plan::load(&dir.join("r.ron"), None).unwrap();
+        let mut r = Runner::new(&plan, PathBuf::from("/bin/true"));
+        assert_eq!(r.run_local().unwrap().ran, 1);
+        assert!(dir.join("work/lib/a/x").exists() && dir.join("work/lib/b/y").exists());
+        assert!(!dir.join("work/lib/meta").exists());
+        // What else changes in the library does not change the copy's identity.
+        std::fs::write(dir.join("lib/meta/eval/report.json"), "new").unwrap();
+        assert_eq!(Runner::new(&plan, PathBuf::from("/bin/true")).run_local().unwrap().skipped, 1);
+        std::fs::write(dir.join("lib/a/x"), "new").unwrap();
+        assert_eq!(Runner::new(&plan, PathBuf::from("/bin/true")).run_local().unwrap().ran, 1);
+        assert_eq!(std::fs::read_to_string(dir.join("work/lib/a/x")).unwrap(), "new");
     }
 }
