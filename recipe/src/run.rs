@@ -279,7 +279,13 @@ impl<'a> Runner<'a> {
             }
             let want = self.identity[a].as_deref().expect("settled");
             match self.store.record(&self.plan.stages[a].id)? {
-                Some(r) if r.identity == want && r.status == Status::Done => expected.extend(r.outputs),
+                Some(r) if r.identity == want && r.status == Status::Done => {
+                    // What it wrote replaces what was there before it: a file it dropped from a
+                    // folder it writes is not brought back.
+                    let roots = &self.plan.stages[a].writes;
+                    expected.retain(|f: &String, _| !roots.iter().any(|w| Path::new(f).starts_with(w)));
+                    expected.extend(r.outputs)
+                }
                 _ => {
                     return Err(err(format!(
                         "it follows `{}`, which has not finished with its current inputs (run the recipe, or that stage, first)",
