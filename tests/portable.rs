@@ -89,3 +89,46 @@ fn the_check_finds_what_it_looks_for() {
     assert_eq!(absolute_paths("see /src/checkout/skills", own).len(), 1);
     assert!(absolute_paths("skills/library/tmp/x and <scratch>/exp/B and /usr/bin/chromium", own).is_empty());
 }
+
+/// `# recipe FILE#STAGE` in `text` (what a command run by a recipe stage records).
+fn recipe_stages(text: &str) -> Vec<(String, String)> {
+    text.match_indices("# recipe ")
+        .filter_map(|(i, _)| {
+            let rest = &text[i + "# recipe ".len()..];
+            let end = rest.find(|c: char| c == '"' || c.is_whitespace()).unwrap_or(rest.len());
+            rest[..end].split_once('#').map(|(f, s)| (f.to_string(), s.to_string()))
+        })
+        .collect()
+}
+
+#[test]
+fn lineages_name_recipe_stages_that_exist() {
+    assert_eq!(
+        recipe_stages("command: \"repertoire x  # recipe recipes/sit.ron#handover/r2/sit\","),
+        [("recipes/sit.ron".to_string(), "handover/r2/sit".to_string())]
+    );
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut all = Vec::new();
+    files(&root.join("skills"), &mut all);
+    let mut named = std::collections::BTreeSet::new();
+    for f in all
+        .iter()
+        .filter(|f| f.file_name().is_some_and(|n| n == "manifest.ron" || n == "meta.ron" || n == "latent.ron"))
+    {
+        named.extend(recipe_stages(&std::fs::read_to_string(f).unwrap()));
+    }
+    for (file, stage) in named {
+        let path = root.join(&file);
+        assert!(path.exists(), "a lineage names {file}, which is not in the repository");
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_repertoire"))
+            .args(["recipe", "plan", path.to_str().unwrap()])
+            .current_dir(root)
+            .output()
+            .unwrap();
+        let plan = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            plan.contains(&format!("| {stage} |")),
+            "a lineage names stage {stage} of {file}, which has none:\n{plan}"
+        );
+    }
+}
