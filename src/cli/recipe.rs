@@ -224,7 +224,11 @@ fn plan_table(runner: &Runner) -> Result<String> {
     for (i, s) in plan.stages.iter().enumerate() {
         let standing = runner.standing(i, &alive)?;
         let would = match standing {
-            Standing::Done => "done".to_string(),
+            Standing::Done => match runner.store.record(&s.id)? {
+                Some(r) if r.seconds >= 60.0 => format!("done ({:.1} min, {})", r.seconds / 60.0, r.ran),
+                Some(r) => format!("done ({:.1} s, {})", r.seconds, r.ran),
+                None => "done".to_string(),
+            },
             Standing::Resume => "resume".into(),
             Standing::Queued(j) => format!("queued (job {j})"),
             Standing::Run => "run".into(),
@@ -245,6 +249,19 @@ fn plan_table(runner: &Runner) -> Result<String> {
         );
     }
     let _ = writeln!(out, "\n{}", counts.iter().map(|(k, v)| format!("{v} {k}")).collect::<Vec<_>>().join(", "));
+    for g in &plan.groups {
+        let rule = match &g.stop {
+            Some(s) => format!(
+                "stops when a round gains under {} points of success in zone `{}` ({}{})",
+                s.gain_below,
+                s.zone,
+                s.report,
+                s.baseline.as_ref().map_or(String::new(), |b| format!("; round 1 against {b}"))
+            ),
+            None => "runs every round".into(),
+        };
+        let _ = writeln!(out, "rounds `{}`: at most {}; {rule}", g.name, g.rounds.len());
+    }
     Ok(out)
 }
 
