@@ -48,11 +48,11 @@ fn a_recipe_runs_skips_what_is_done_resumes_and_reruns_what_changed() {
 
     // A changed input of the rounds reruns both of them, round 1 from the evaluated walk (not
     // from what round 2 left), so the lineage is as long as before.
-    let file = tiny_recipe(&dir, "0.6");
-    let plan = ok(&repertoire(&["recipe", "plan", file.to_str().unwrap()]));
+    // (--var sets one of the recipe's values, as editing it would.)
+    let plan = ok(&repertoire(&["recipe", "plan", file_s, "--var", "fraction=0.6"]));
     assert_eq!(plan.matches("| done (").count(), 2, "{plan}");
     assert!(plan.contains("rounds `tune`: at most 2; runs every round"), "{plan}");
-    let text = ok(&repertoire(&["recipe", "run", file.to_str().unwrap()]));
+    let text = ok(&repertoire(&["recipe", "run", file_s, "--var", "fraction=0.6"]));
     assert!(text.contains("2 stages run, 2 done before"), "{text}");
     assert_eq!(lineage_len(&lib), 2);
     let manifest = std::fs::read_to_string(lib.join("walk/manifest.ron")).unwrap();

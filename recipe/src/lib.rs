@@ -241,6 +241,11 @@ pub struct Plan {
 impl Plan {
     /// Loads and expands the recipe at `file`; `work` overrides its work folder.
     pub fn load(file: &Path, work: Option<&Path>) -> Result<Plan> {
+        Plan::load_with(file, work, &[])
+    }
+
+    /// [`Plan::load`] with `vars` set over the recipe's (`--var NAME=VALUE`).
+    pub fn load_with(file: &Path, work: Option<&Path>, vars: &[(String, String)]) -> Result<Plan> {
         let text = std::fs::read_to_string(file).map_err(io_err(file, "cannot read the recipe"))?;
         let recipe: Recipe = ron::Options::default()
             .with_default_extension(
@@ -253,6 +258,10 @@ impl Plan {
                 col: e.span.start.col,
                 message: e.code.to_string(),
             })?;
+        let mut recipe = recipe;
+        for (k, v) in vars {
+            recipe.vars.insert(k.clone(), v.clone());
+        }
         Plan::expand(file, &recipe, work)
     }
 

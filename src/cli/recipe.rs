@@ -51,6 +51,17 @@ pub struct RecipeArgs {
     /// Another work folder than the recipe's `work`.
     #[arg(long)]
     work: Option<PathBuf>,
+    /// Set one of the recipe's `vars` (repeat): `--var skills=runs/recipe-library/library`
+    /// starts recipes/sit.ron from the skills recipes/library.ron made.
+    #[arg(long = "var", value_name = "NAME=VALUE", value_parser = parse_var)]
+    vars: Vec<(String, String)>,
+}
+
+fn parse_var(s: &str) -> std::result::Result<(String, String), String> {
+    match s.split_once('=') {
+        Some((k, v)) if !k.is_empty() => Ok((k.to_string(), v.to_string())),
+        _ => Err(format!("`{s}`: expected NAME=VALUE")),
+    }
 }
 
 impl RecipeArgs {
@@ -58,6 +69,9 @@ impl RecipeArgs {
         let mut a = vec![self.file.display().to_string()];
         if let Some(w) = &self.work {
             a.extend(["--work".into(), w.display().to_string()]);
+        }
+        for (k, v) in &self.vars {
+            a.push(format!("--var={k}={v}"));
         }
         a
     }
@@ -127,7 +141,7 @@ pub fn run(cmd: RecipeCommand) -> Result<()> {
     let exe = std::env::current_exe().context("locating the repertoire binary")?;
     match cmd {
         RecipeCommand::Plan { recipe, dot } => {
-            let plan = Plan::load(&recipe.file, recipe.work.as_deref())?;
+            let plan = Plan::load_with(&recipe.file, recipe.work.as_deref(), &recipe.vars)?;
             if dot {
                 print!("{:?}", petgraph::dot::Dot::with_config(&plan.graph(), &[petgraph::dot::Config::EdgeNoLabel]));
                 return Ok(());
@@ -138,7 +152,7 @@ pub fn run(cmd: RecipeCommand) -> Result<()> {
             Ok(())
         }
         RecipeCommand::Run { recipe, slurm: false, .. } => {
-            let plan = Plan::load(&recipe.file, recipe.work.as_deref())?;
+            let plan = Plan::load_with(&recipe.file, recipe.work.as_deref(), &recipe.vars)?;
             let mut runner = Runner::new(&plan, exe);
             let t = std::time::Instant::now();
             let s = runner.run_local()?;
@@ -154,7 +168,7 @@ pub fn run(cmd: RecipeCommand) -> Result<()> {
             Ok(())
         }
         RecipeCommand::Run { recipe, slurm: true, sbatch, wait } => {
-            let plan = Plan::load(&recipe.file, recipe.work.as_deref())?;
+            let plan = Plan::load_with(&recipe.file, recipe.work.as_deref(), &recipe.vars)?;
             let opts = sbatch.options()?;
             let mut again = vec!["recipe".to_string(), "run".into()];
             again.extend(recipe.args());
@@ -192,7 +206,7 @@ pub fn run(cmd: RecipeCommand) -> Result<()> {
             Ok(())
         }
         RecipeCommand::Stage { recipe, id } => {
-            let plan = Plan::load(&recipe.file, recipe.work.as_deref())?;
+            let plan = Plan::load_with(&recipe.file, recipe.work.as_deref(), &recipe.vars)?;
             let i = plan.find(&id)?;
             let mut runner = Runner::new(&plan, exe);
             for j in 0..=i {
