@@ -53,6 +53,10 @@ pub enum BenchCommand {
         /// Physics steps for the raw mj_step ceiling measurement.
         #[arg(long, default_value_t = 24_000)]
         physics_steps: usize,
+        /// Also measure PPO end to end on thread pools of these sizes (e.g. 1,2,4,8,16) and
+        /// print each against one thread: how training scales with cores.
+        #[arg(long, value_delimiter = ',')]
+        threads: Vec<usize>,
     },
 }
 
@@ -93,7 +97,10 @@ pub fn run(cmd: BenchCommand) -> Result<()> {
             }
             Ok(())
         }
-        BenchCommand::Ppo { file, envs, steps, iters, hidden, epochs, minibatches, physics_steps } => {
+        BenchCommand::Ppo { file, envs, steps, iters, hidden, epochs, minibatches, physics_steps, threads } => {
+            if threads.contains(&0) {
+                anyhow::bail!("--threads: a pool has at least one thread");
+            }
             let model = Arc::new(WorldModel::build(super::load_scenario(file.as_ref())?)?);
             let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
             let layout = Arc::new(ObservationLayout::new(&model, &Feature::proprioception())?);
@@ -112,7 +119,7 @@ pub fn run(cmd: BenchCommand) -> Result<()> {
                 ..PpoConfig::default()
             };
             let ceiling = bench_world(&model, physics_steps, 3, &[1, cores]);
-            let r = bench_ppo(cfg, (0..envs).map(make).collect(), iters);
+            let r = bench_ppo(cfg.clone(), (0..envs).map(make).collect(), iters);
             let per_tick = ceiling.substeps as f64;
             let raw_ctrl = ceiling.raw / per_tick;
             let all_ctrl = ceiling.threads.last().map_or(raw_ctrl, |(_, s)| s / per_tick);
@@ -148,6 +155,24 @@ pub fn run(cmd: BenchCommand) -> Result<()> {
                 r.forward_dfdx_us,
                 r.forward_dfdx_us / r.forward_plain_us
             );
+            if !threads.is_empty() {
+                let mut rates = Vec::new();
+                for &t in &threads {
+                    let pool = rayon::ThreadPoolBuilder::new().num_threads(t).build()?;
+                    let r = pool.install(|| bench_ppo(cfg.clone(), (0..envs).map(make).collect(), iters));
+                    rates.push((t, r.samples_per_sec));
+                }
+                let base = rates.iter().find(|(t, _)| *t == 1).or(rates.first()).map_or(1.0, |&(_, s)| s);
+                let base_t = rates.iter().find(|(t, _)| *t == 1).or(rates.first()).map_or(1, |&(t, _)| t);
+                println!("\n| threads | PPO samples/s | vs {base_t} thread{} |", if base_t == 1 { "" } else { "s" });
+                println!("|---:|---:|---:|");
+                for (t, s) in &rates {
+                    println!("| {t} | {s:.0} | {:.2}× |", s / base);
+                }
+                if threads.iter().any(|&t| t > cores) {
+                    println!("(this machine has {cores} cores: pools larger than that share them)");
+                }
+            }
             Ok(())
         }
     }
