@@ -80,3 +80,44 @@ fn clip_check_refuses_unusable_clips_with_a_reason() {
     assert!(stderr.contains("my.map.ron:") && stderr.contains("`lankle`"), "{stderr}");
     assert!(!dir.join("16_15_walk.clip.ron").exists(), "nothing written for an unusable clip");
 }
+
+#[test]
+fn a_clip_retargeted_onto_another_body_is_refused_by_play_and_train() {
+    // Another body: the built-in humanoid with a larger head (same joints, another content hash),
+    // in a scenario of its own.
+    let dir = temp_dir("clip-other-body");
+    let builtin = repertoire::scenes::BodyDef::humanoid();
+    let xml = builtin.mjcf.replace(r#"size="0.095" mass="4.5""#, r#"size="0.105" mass="4.5""#);
+    assert_ne!(xml, builtin.mjcf, "the head's size changed");
+    write(&dir, "big_head.xml", &xml);
+    write(&dir, "big_head.map.ron", &builtin.map_text);
+    write(
+        &dir,
+        "scene.ron",
+        "Scenario(name: \"big head\", body: Mjcf(file: \"big_head.xml\", map: \"big_head.map.ron\"))",
+    );
+    let file = format!("{MOCAP}/cmu-subject16-30fps/16_19_walk_90deg_right_turn.bvh");
+    let out = repertoire(&dir, &["clip", "check", &file, "--body", "humanoid", "--out", "walk.clip.ron"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+
+    // Played on its own body it records; on the other body it is refused, saying what to do.
+    let out = repertoire(&dir, &["clip", "play", "walk.clip.ron", "--record", "own.rec"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = repertoire(&dir, &["clip", "play", "walk.clip.ron", "--scene", "scene.ron", "--record", "other.rec"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && !dir.join("other.rec").exists(), "{err}");
+    assert!(err.contains("retargeted onto another body") && err.contains("--body big_head.xml"), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+
+    // A skill whose spec's clip was made for another body is refused before training.
+    let spec =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("skills/skill/specs/walk.ron")).unwrap();
+    let clip_line = spec.lines().find(|l| l.trim_start().starts_with("clip:")).expect("walk.ron names its clip");
+    let spec = spec
+        .replace(clip_line, "    clip: (file: \"walk.clip.ron\"),")
+        .replace("scene: \"arena.ron\"", "scene: \"scene.ron\"");
+    write(&dir, "walk.ron", &spec);
+    let out = repertoire(&dir, &["skill", "train", "walk.ron", "--iterations", "1", "--library", "lib"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("retargeted onto another body"), "{err}");
+}

@@ -42,7 +42,25 @@ pub struct SkillSetup {
 pub fn load_clip(path: &Path, map: Option<&Path>, body: &ClipBody) -> Result<Clip> {
     let name = path.file_name().map(|n| n.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
     if name.ends_with(".clip.ron") || name.ends_with(".npy") {
-        return Ok(Clip::load(path)?);
+        let clip = Clip::load(path)?;
+        // A retargeted clip holds one body's joint angles: on another body they would land on
+        // other joints (or past the end of its qpos).
+        if clip.body_hash != body.hash() {
+            let mjcf = repertoire_files::portable_path(&body.def.mjcf_path);
+            let flag = if mjcf.starts_with("<built-in>") { "humanoid".to_string() } else { mjcf.clone() };
+            return Err(SkillError::Invalid(format!(
+                "{}: retargeted onto another body (body hash {}, {} qpos values a frame), not {} (hash {}, {} values); \
+                 retarget its source onto this body: `repertoire clip check SOURCE --body {} --out CLIP`",
+                path.display(),
+                clip.body_hash,
+                clip.nq,
+                mjcf,
+                body.hash(),
+                body.nq(),
+                flag,
+            )));
+        }
+        return Ok(clip);
     }
     let source = ClipSource::from_path(path, None)?;
     if let ClipSource::Keyframes(p) = &source {
