@@ -125,6 +125,29 @@ fn an_mjcf_that_mujoco_rejects_passes_on_mujocos_message() {
 }
 
 #[test]
+fn a_body_that_names_its_own_floor_is_told_the_line_of_its_file() {
+    // A body file that ships its own floor geom (as many do): the scene adds one too. Where
+    // MuJoCo named a line of the composed model, the line of the user's file is named.
+    let dir = temp_dir("own-floor");
+    let builtin = BodyDef::humanoid();
+    let xml = builtin.mjcf.replacen(
+        "<worldbody>",
+        "<worldbody>\n    <geom name=\"floor\" type=\"plane\" size=\"5 5 0.1\"/>",
+        1,
+    );
+    let line = xml.lines().position(|l| l.contains("name=\"floor\"")).unwrap() + 1;
+    let msg = user_body(&dir, &xml, &builtin.map_text).err().expect("refused").to_string();
+    assert!(msg.contains(&format!("body.xml:{line}:")), "{msg}");
+    assert!(msg.contains("<geom name=\"floor\">") && msg.contains("rename it"), "{msg}");
+    // A body (not a geom) called floor clashes with nothing: MuJoCo keeps names per kind.
+    let xml = builtin.mjcf.replacen("<body name=\"head\"", "<body name=\"floor\"", 1);
+    assert_ne!(xml, builtin.mjcf);
+    if let Err(e) = user_body(&dir, &xml, &builtin.map_text) {
+        assert!(!e.to_string().contains("has the name of a"), "{e}");
+    }
+}
+
+#[test]
 fn a_body_map_naming_a_missing_joint_is_rejected() {
     let dir = temp_dir("bad-map");
     let builtin = BodyDef::humanoid();

@@ -86,8 +86,48 @@ pub fn scene_mjcf(body: &BodyDef, scenario: &Scenario) -> Result<String> {
         }
         out.push_str("  </actuator>\n");
     }
+    check_names(body, &out[close..])?;
     out.push_str(&body.mjcf[close..]);
     Ok(out)
+}
+
+/// Refuses a body whose MJCF names an element the way the scene's own of that kind is named
+/// (a `floor` geom, a prop's geom, a light, a material): MuJoCo would report the repeated name
+/// at a line of the composed model, which the user cannot see; this names the line of their
+/// file.
+fn check_names(body: &BodyDef, added: &str) -> Result<()> {
+    let ours: std::collections::HashSet<(String, String)> =
+        named_elements(added).into_iter().map(|(kind, name, _)| (kind, name)).collect();
+    for (kind, name, line) in named_elements(&body.mjcf) {
+        if ours.contains(&(kind.clone(), name.clone())) {
+            return Err(SceneError::Invalid {
+                file: body.mjcf_path.clone(),
+                loc: Some(crate::error::Location { line, col: 1 }),
+                message: format!(
+                    "the body's <{kind} name=\"{name}\"> has the name of a {kind} the scene adds (its floor, light, \
+                     materials and props); rename it in this file"
+                ),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Every `<kind … name="…"` in `text`: (kind, name, 1-based line).
+fn named_elements(text: &str) -> Vec<(String, String, usize)> {
+    let mut out = Vec::new();
+    for (i, _) in text.match_indices(" name=\"") {
+        let Some(open) = text[..i].rfind('<') else { continue };
+        if text[open..i].contains('>') {
+            continue; // an attribute outside a tag
+        }
+        let kind: String = text[open + 1..].chars().take_while(|c| c.is_ascii_alphanumeric() || *c == '_').collect();
+        let start = i + " name=\"".len();
+        let Some(len) = text[start..].find('"') else { continue };
+        let line = text[..open].matches('\n').count() + 1;
+        out.push((kind, text[start..start + len].to_string(), line));
+    }
+    out
 }
 
 /// Quaternion (w x y z) of a heading about +z, in degrees.
