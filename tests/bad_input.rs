@@ -148,6 +148,25 @@ fn a_body_that_names_its_own_floor_is_told_the_line_of_its_file() {
 }
 
 #[test]
+fn a_body_driven_by_torque_motors_is_refused_naming_the_actuators() {
+    // Joint-angle targets written into motors collapse the body in every trial: refuse it and
+    // say what to write instead.
+    let dir = temp_dir("motors");
+    let builtin = BodyDef::humanoid();
+    let mut xml = builtin.mjcf.clone();
+    for knee in ["left_knee", "right_knee"] {
+        let servo = format!(r#"<position name="{knee}" joint="{knee}" class="knee"/>"#);
+        assert!(xml.contains(&servo), "the built-in body drives {knee} by a position servo");
+        xml = xml.replace(&servo, &format!(r#"<motor name="{knee}" joint="{knee}" gear="100" ctrlrange="-1 1"/>"#));
+    }
+    let msg = user_body(&dir, &xml, &builtin.map_text).err().expect("refused").to_string();
+    assert!(msg.contains("body.xml"), "{msg}");
+    assert!(msg.contains("2 actuators of the actuated joints are not position servos"), "{msg}");
+    assert!(msg.contains("`left_knee` (left_knee)") && msg.contains("`right_knee` (right_knee)"), "{msg}");
+    assert!(msg.contains("<position joint="), "says what to write: {msg}");
+}
+
+#[test]
 fn a_body_map_naming_a_missing_joint_is_rejected() {
     let dir = temp_dir("bad-map");
     let builtin = BodyDef::humanoid();

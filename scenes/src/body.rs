@@ -232,6 +232,11 @@ impl BodyIndex {
         let trn_id = model.actuator_trnid();
         let ctrl_range = model.actuator_ctrlrange();
         let ctrl_limited = model.actuator_ctrllimited();
+        let gain_type = model.actuator_gaintype();
+        let bias_type = model.actuator_biastype();
+        let gain = model.actuator_gainprm();
+        let bias = model.actuator_biasprm();
+        let mut not_servos = Vec::new();
         let mut joints = Vec::with_capacity(map.actuated_joints.len());
         for name in &map.actuated_joints {
             let j = model.name_to_id(MjtObjBase::mjOBJ_JOINT, name).ok_or_else(|| {
@@ -252,6 +257,19 @@ impl BodyIndex {
                     format!("actuated joint `{name}` is driven by {} actuators; it needs exactly one", drivers.len()),
                 ));
             };
+            // Policies write joint-angle targets into the controls: a position servo
+            // (force = kp·(ctrl − q) − kv·q̇: fixed gain kp, affine bias 0, −kp, −kv) turns them into
+            // torques; a motor would take an angle as a torque and the body would collapse.
+            let kp = gain[actuator][0];
+            let servo = gain_type[actuator] == MjtGain::mjGAIN_FIXED
+                && bias_type[actuator] == MjtBias::mjBIAS_AFFINE
+                && kp > 0.0
+                && bias[actuator][0] == 0.0
+                && (bias[actuator][1] + kp).abs() <= 1e-9 * kp.max(1.0);
+            if !servo {
+                let a = model.id_to_name(MjtObjBase::mjOBJ_ACTUATOR, actuator).unwrap_or("(unnamed)").to_string();
+                not_servos.push(format!("`{a}` ({name})"));
+            }
             let range = if model.jnt_limited()[j] { model.jnt_range()[j] } else { [-f64::INFINITY, f64::INFINITY] };
             let ctrl = if ctrl_limited[actuator] { ctrl_range[actuator] } else { range };
             joints.push(ActuatedJoint {
@@ -261,6 +279,22 @@ impl BodyIndex {
                 range,
                 actuator,
                 ctrl_range: ctrl,
+            });
+        }
+        if !not_servos.is_empty() {
+            let n = not_servos.len();
+            return Err(SceneError::Mjcf {
+                file: def.mjcf_path.clone(),
+                message: format!(
+                    "{n} actuator{} of the actuated joints {} not position servos: {}{}. Policies drive the joints by \
+                     angle targets, which a motor would take as torques. Write each as \
+                     `<position joint=\"J\" kp=\"…\" kv=\"…\" ctrlrange=\"lo hi\" forcerange=\"…\"/>` \
+                     (scenes/assets/humanoid.xml shows gains for a 70 kg body)",
+                    if n == 1 { "" } else { "s" },
+                    if n == 1 { "is" } else { "are" },
+                    not_servos.iter().take(6).cloned().collect::<Vec<_>>().join(", "),
+                    if n > 6 { format!(" and {} more", n - 6) } else { String::new() }
+                ),
             });
         }
         for (a, &trn) in trn_type.iter().enumerate() {
