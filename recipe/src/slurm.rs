@@ -216,7 +216,10 @@ pub fn submit(runner: &mut Runner, recipe_args: &[String], again: &[String], opt
     Ok(out)
 }
 
-fn sbatch(name: &str, cwd: &Path, log: &Path, after: &[u64], opts: &[String], wrap: &str) -> Result<u64> {
+/// Submits `wrap` (a shell line) as job `name` working in `cwd`, its output in `log`, after the
+/// jobs `after` (afterok), with more sbatch arguments `opts` (an `--array=…` among them makes it
+/// a job array); returns the job id.
+pub fn sbatch(name: &str, cwd: &Path, log: &Path, after: &[u64], opts: &[String], wrap: &str) -> Result<u64> {
     let mut cmd = Command::new("sbatch");
     cmd.arg("--parsable").arg(format!("--job-name={name}")).arg(format!("--chdir={}", cwd.display()));
     cmd.arg(format!("--output={}", absolute(cwd, log).display()));

@@ -247,6 +247,7 @@ fn submit(
     wait: bool,
 ) -> Result<()> {
     use repertoire_recipe::run::shell_quote;
+    use repertoire_recipe::slurm;
     let mut args: Vec<String> =
         vec!["ablate".into(), spec.display().to_string(), "--out".into(), out.display().to_string()];
     if !overrides.seeds.is_empty() {
@@ -271,42 +272,27 @@ fn submit(
     let cwd = std::env::current_dir().context("reading the working folder")?;
     let logs = cwd.join(out).join("slurm");
     std::fs::create_dir_all(&logs).with_context(|| format!("{}: cannot create", logs.display()))?;
-    let name = repertoire_recipe::slurm::job_prefix(out);
-    let sbatch = |extra: &[String], wrap: String| -> Result<u64> {
-        let o = Command::new("sbatch")
-            .arg("--parsable")
-            .arg(format!("--job-name={name}"))
-            .arg(format!("--chdir={}", cwd.display()))
-            .args(extra)
-            .arg(format!("--wrap={wrap}"))
-            .output()
-            .context("running sbatch (is Slurm installed and SLURM_CONF set? scripts/slurm-local.sh starts a one-node cluster)")?;
-        if !o.status.success() {
-            bail!("sbatch refused the ablation's job: {}", String::from_utf8_lossy(&o.stderr).trim());
-        }
-        let text = String::from_utf8_lossy(&o.stdout);
-        text.trim()
-            .split(';')
-            .next()
-            .and_then(|j| j.parse().ok())
-            .with_context(|| format!("sbatch answered `{}`", text.trim()))
-    };
-    let mut dependency = Vec::new();
+    let name = slurm::job_prefix(out);
+    let mut after = Vec::new();
     if !todo.is_empty() {
-        let mut extra =
-            vec![format!("--array={}", todo.join(",")), format!("--output={}", logs.join("run-%a-%A.out").display())];
+        let mut extra = vec![format!("--array={}", todo.join(","))];
         extra.extend(options.args(None));
-        let array = sbatch(&extra, format!("exec {} --run-index \"$SLURM_ARRAY_TASK_ID\"", line(&[])))?;
+        let wrap = format!("exec {} --run-index \"$SLURM_ARRAY_TASK_ID\"", line(&[]));
+        let array = slurm::sbatch(&name, &cwd, &logs.join("run-%a-%A.out"), &[], &extra, &wrap)?;
         println!("{} runs submitted as job array {array} (logs in {})", todo.len(), logs.display());
-        dependency = vec![format!("--dependency=afterok:{array}"), "--kill-on-invalid-dep=yes".into()];
+        after.push(array);
     }
-    let mut extra = dependency;
-    extra.push(format!("--output={}", logs.join("table-%j.out").display()));
-    extra.extend(options.args(Some(1)));
-    let table = sbatch(&extra, format!("exec {}", line(&[])))?;
+    let table = slurm::sbatch(
+        &name,
+        &cwd,
+        &logs.join("table-%j.out"),
+        &after,
+        &options.args(Some(1)),
+        &format!("exec {}", line(&[])),
+    )?;
     println!("job {table} gathers the table into {}", out.display());
     if wait {
-        repertoire_recipe::slurm::wait(out, std::time::Duration::from_secs(2))?;
+        slurm::wait(out, std::time::Duration::from_secs(2))?;
         if !out.join("table.md").exists() {
             bail!("the ablation's jobs ended without a table; their logs are in {}", logs.display());
         }
