@@ -167,6 +167,26 @@ fn a_body_driven_by_torque_motors_is_refused_naming_the_actuators() {
 }
 
 #[test]
+fn a_floating_or_sunken_body_is_refused_saying_how_far_and_which_way() {
+    // A body whose default pose holds the feet above the floor (a third-party file with its root
+    // at another height) would drop at every start; one below it would start in the floor.
+    let dir = temp_dir("floating");
+    let builtin = BodyDef::humanoid();
+    let standing = r#"<body name="pelvis" pos="0 0 0.958">"#;
+    assert!(builtin.mjcf.contains(standing));
+    let floating = builtin.mjcf.replace(standing, r#"<body name="pelvis" pos="0 0 1.073">"#);
+    let msg = user_body(&dir, &floating, &builtin.map_text).err().expect("refused").to_string();
+    assert!(msg.contains("body.xml") && msg.contains("11.6 cm above the floor") && msg.contains("lower"), "{msg}");
+    let sunken = builtin.mjcf.replace(standing, r#"<body name="pelvis" pos="0 0 0.908">"#);
+    let msg = user_body(&dir, &sunken, &builtin.map_text).err().expect("refused").to_string();
+    assert!(msg.contains("4.9 cm below the floor") && msg.contains("raise"), "{msg}");
+    // A centimetre is taken as standing.
+    let close = builtin.mjcf.replace(standing, r#"<body name="pelvis" pos="0 0 0.968">"#);
+    let model = user_body(&dir, &close, &builtin.map_text).expect("a centimetre off stands");
+    assert!((model.sole_clearance() - 0.011).abs() < 0.001, "{}", model.sole_clearance());
+}
+
+#[test]
 fn a_body_map_naming_a_missing_joint_is_rejected() {
     let dir = temp_dir("bad-map");
     let builtin = BodyDef::humanoid();

@@ -52,6 +52,7 @@ fn the_low_level_field_defaults_resolves_and_refuses_a_missing_model() {
     assert!(text.contains("low level latent model") && text.contains("skills/library/latent"), "{text}");
     let text = ok(&repertoire(&["scene", "check"]));
     assert!(text.contains("low level skills"), "{text}");
+    assert!(text.contains("standing pose: the feet's lowest point 1.0 mm above the floor"), "{text}");
     // An unknown low level is a located RON error.
     let path = common::write(&dir, "d.ron", &sit_with(Some("Latnt(\"model\")")));
     let err = ScenarioFile::load(&path).unwrap_err().to_string();

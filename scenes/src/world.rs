@@ -104,6 +104,40 @@ pub struct WorldModel {
     prop_use: Vec<PropUse>,
     /// The pelvis height below which the fall test calls it low (m).
     pelvis_min: f64,
+    /// The feet's lowest point above the floor in the standing pose (m).
+    clearance: f64,
+}
+
+/// How far the feet's lowest point may be off the floor in the standing pose before a body is
+/// refused as floating or sunken (m).
+pub const SOLE_TOLERANCE_M: f64 = 0.02;
+
+/// The lowest point of the geoms of the feet (their subtrees) at the model's default pose,
+/// above the floor (z = 0).
+fn sole_clearance(model: &Arc<MjModel>, index: &BodyIndex, parent: &[usize]) -> f64 {
+    let mut data = MjData::new(Arc::clone(model));
+    data.forward();
+    let (types, sizes, bodies) = (model.geom_type(), model.geom_size(), model.geom_bodyid());
+    let (pos, mat) = (data.geom_xpos(), data.geom_xmat());
+    use mujoco_rs::wrappers::mj_model::MjtGeomBase as MjtGeom;
+    let mut lowest = f64::INFINITY;
+    for g in 0..bodies.len() {
+        let b = bodies[g] as usize;
+        if !index.feet.iter().any(|&f| crate::body::in_subtree(parent, b, f)) {
+            continue;
+        }
+        let (s, r) = (sizes[g], [mat[g][6], mat[g][7], mat[g][8]]);
+        let reach = match types[g] {
+            MjtGeom::mjGEOM_SPHERE => s[0],
+            MjtGeom::mjGEOM_CAPSULE => r[2].abs() * s[1] + s[0],
+            MjtGeom::mjGEOM_CYLINDER => r[2].abs() * s[1] + s[0] * (1.0 - r[2] * r[2]).max(0.0).sqrt(),
+            MjtGeom::mjGEOM_BOX => r[0].abs() * s[0] + r[1].abs() * s[1] + r[2].abs() * s[2],
+            MjtGeom::mjGEOM_ELLIPSOID => ((r[0] * s[0]).powi(2) + (r[1] * s[1]).powi(2) + (r[2] * s[2]).powi(2)).sqrt(),
+            _ => model.geom_rbound()[g],
+        };
+        lowest = lowest.min(pos[g][2] - reach);
+    }
+    if lowest.is_finite() { lowest } else { 0.0 }
 }
 
 impl WorldModel {
@@ -176,6 +210,24 @@ impl WorldModel {
             })
             .collect();
         let pelvis_min = scenario.scenario.fall.pelvis_below * model.qpos0()[index.root_qpos + 2];
+        let model = Arc::new(model);
+        let clearance = sole_clearance(&model, &index, &parent);
+        if clearance.abs() > SOLE_TOLERANCE_M {
+            let (what, how) = if clearance > 0.0 { ("above", "lower") } else { ("below", "raise") };
+            return Err(SceneError::Invalid {
+                file: body.mjcf_path.clone(),
+                loc: None,
+                message: format!(
+                    "in its default pose (every joint at 0) the lowest point of the feet is {:.1} cm {what} the floor: the \
+                     character would {} at every start, and clips retargeted onto it would be judged against the wrong floor; \
+                     {how} the root body's `pos` by {:.3} m in this file (at most {:.0} cm off is taken as standing)",
+                    100.0 * clearance.abs(),
+                    if clearance > 0.0 { "drop" } else { "start inside the floor" },
+                    clearance.abs(),
+                    100.0 * SOLE_TOLERANCE_M
+                ),
+            });
+        }
         Ok(Self {
             scenario,
             body,
@@ -183,14 +235,21 @@ impl WorldModel {
             mjcf,
             props,
             floor_geom,
-            model: Arc::new(model),
+            model,
             geom_body,
             geom_prop,
             substeps,
             parts,
             prop_use,
             pelvis_min,
+            clearance,
         })
+    }
+
+    /// How far the lowest point of the feet is above the floor in the standing pose (m;
+    /// negative: inside it), what `scene check` reports.
+    pub fn sole_clearance(&self) -> f64 {
+        self.clearance
     }
 
     /// The compiled MuJoCo model.

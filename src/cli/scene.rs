@@ -52,6 +52,11 @@ fn check(file: Option<PathBuf>) -> Result<()> {
     }
     println!("body      {} (hash {})", model.body.mjcf_path.display(), model.body.content_hash());
     println!("          {} actuated DoF, {:.1} kg, standing height {:.2} m", model.index.dof(), mass, height);
+    println!(
+        "          standing pose: the feet's lowest point {:.1} mm {} the floor",
+        1000.0 * model.sole_clearance().abs(),
+        if model.sole_clearance() >= 0.0 { "above" } else { "below" }
+    );
     println!("          joints: {}", model.index.joints.iter().map(|j| j.name.as_str()).collect::<Vec<_>>().join(" "));
     println!(
         "rates     physics {} Hz, control {} Hz ({} substeps), meta {} Hz",
