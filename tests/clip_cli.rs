@@ -71,13 +71,16 @@ fn clip_check_refuses_unusable_clips_with_a_reason() {
     // A map naming a joint the file lacks.
     let map = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/skills/clip/maps/cmu-subject16.bvh.ron"))
         .unwrap()
-        .replace("\"lfoot\"", "\"lankle\"");
+        .replace("\"lfoot\"", "\"lankle\"")
+        .replace("\"rhand\"", "\"rwrist\"");
     let map = write(&dir, "my.map.ron", &map);
     let file = format!("{MOCAP}/cmu-subject16-30fps/16_15_walk.bvh");
     let out = repertoire(&dir, &["clip", "check", &file, "--map", map.to_str().unwrap()]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success());
     assert!(stderr.contains("my.map.ron:") && stderr.contains("`lankle`"), "{stderr}");
+    // Every missing joint at once, not one per attempt.
+    assert!(stderr.contains("source joints `lankle` (LeftAnkle), `rwrist` (RightHand) are not in"), "{stderr}");
     assert!(!dir.join("16_15_walk.clip.ron").exists(), "nothing written for an unusable clip");
 }
 

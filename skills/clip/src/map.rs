@@ -270,20 +270,25 @@ impl LoadedMap {
 
     /// Checks that every source joint (and end site) exists in `skeleton` (read from `source`).
     pub fn check_source(&self, skeleton: &Skeleton, source: &Path) -> Result<()> {
+        // Every missing joint at once, located at the first.
+        let missing: Vec<_> = self.map.points.iter().filter(|p| skeleton.joint_index(&p.source).is_none()).collect();
+        if let Some(first) = missing.first() {
+            let names: Vec<&str> = skeleton.joints.iter().map(|j| j.name.as_str()).collect();
+            let list: Vec<String> = missing.iter().map(|p| format!("`{}` ({:?})", p.source, p.role)).collect();
+            return Err(self.error(
+                &first.source,
+                format!(
+                    "source joint{} {} {} not in {} (joints: {})",
+                    if missing.len() == 1 { "" } else { "s" },
+                    list.join(", "),
+                    if missing.len() == 1 { "is" } else { "are" },
+                    source.display(),
+                    names.join(", ")
+                ),
+            ));
+        }
         for p in &self.map.points {
-            let Some(j) = skeleton.joint_index(&p.source) else {
-                let names: Vec<&str> = skeleton.joints.iter().map(|j| j.name.as_str()).collect();
-                return Err(self.error(
-                    &p.source,
-                    format!(
-                        "source joint `{}` ({:?}) is not in {} (joints: {})",
-                        p.source,
-                        p.role,
-                        source.display(),
-                        names.join(", ")
-                    ),
-                ));
-            };
+            let j = skeleton.joint_index(&p.source).expect("checked above");
             if p.end_site && skeleton.joints[j].end_site.is_none() {
                 return Err(self
                     .error(&p.source, format!("source joint `{}` has no end site in {}", p.source, source.display())));
@@ -329,8 +334,14 @@ pub fn detect(format: SourceFormat, skeleton: &Skeleton, source: &Path) -> Resul
                 }
             }
             Err(e) => {
-                let missing = map.map.points.iter().find(|p| skeleton.joint_index(&p.source).is_none());
-                let why = missing.map_or_else(|| e.to_string(), |p| format!("no joint `{}`", p.source));
+                let missing: Vec<String> = map
+                    .map
+                    .points
+                    .iter()
+                    .filter(|p| skeleton.joint_index(&p.source).is_none())
+                    .map(|p| format!("`{}`", p.source))
+                    .collect();
+                let why = if missing.is_empty() { e.to_string() } else { format!("no joint {}", missing.join(", ")) };
                 reasons.push(format!("{} ({why})", map.map.name));
             }
         }
