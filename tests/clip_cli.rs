@@ -124,3 +124,34 @@ fn a_clip_retargeted_onto_another_body_is_refused_by_play_and_train() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("retargeted onto another body"), "{err}");
 }
+
+#[test]
+fn a_map_that_fits_the_skeleton_poorly_is_warned_about_with_the_maps_that_would_take_it() {
+    // A user's map with the arms' source joints swapped left for right: every joint exists, so
+    // it is accepted, but the hands cannot reach where the source puts them.
+    let dir = temp_dir("clip-poor-fit");
+    let shipped =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/skills/clip/maps/cmu-subject16.bvh.ron"))
+            .unwrap();
+    let mut map = shipped.replace("name: \"cmu-subject16-bvh\"", "name: \"mine\"");
+    for (a, b) in [("lhand", "rhand"), ("lradius", "rradius")] {
+        map = map
+            .replace(&format!("source: \"{a}\""), "source: \"SWAP\"")
+            .replace(&format!("source: \"{b}\""), &format!("source: \"{a}\""))
+            .replace("source: \"SWAP\"", &format!("source: \"{b}\""));
+    }
+    assert_ne!(map, shipped);
+    let map = write(&dir, "mine.map.ron", &map);
+    let file = format!("{MOCAP}/cmu-subject16-30fps/16_15_walk.bvh");
+    let out = repertoire(&dir, &["clip", "check", &file, "--map", map.to_str().unwrap()]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "a warning, not a refusal: {stdout}");
+    let warning = stdout.lines().find(|l| l.starts_with("warning")).unwrap_or_else(|| panic!("no warning:\n{stdout}"));
+    assert!(
+        warning.contains("fits this skeleton poorly") && warning.contains("cmu-subject16-bvh (--map)"),
+        "{warning}"
+    );
+    // The shipped map on the same file fits: no warning.
+    let out = repertoire(&dir, &["clip", "check", &file]);
+    assert!(!String::from_utf8_lossy(&out.stdout).contains("warning"));
+}

@@ -69,6 +69,10 @@ pub fn run(cmd: ClipCommand) -> Result<()> {
     }
 }
 
+/// Mean key-point retarget error (cm) above which `clip check` warns that the map fits the
+/// skeleton poorly (the shipped clips retarget at 1–4 cm).
+const POOR_FIT_CM: f64 = 5.0;
+
 fn check(
     file: PathBuf,
     body: &str,
@@ -100,6 +104,19 @@ fn check(
     }
     if let Some((mean, max)) = report.error_cm {
         println!("  {:<16} {:<18} {:>7.2} {:>7.2}", "all", "", mean, max);
+        if mean > POOR_FIT_CM {
+            let others: Vec<&str> =
+                report.fitting.iter().map(String::as_str).filter(|n| Some(*n) != report.map.as_deref()).collect();
+            println!(
+                "warning   the map fits this skeleton poorly (mean key-point error {mean:.1} cm, over {POOR_FIT_CM:.0} cm): \
+                 poses land off where the source put them; {}",
+                if others.is_empty() {
+                    "no other shipped map takes this skeleton: write a map for it (--map, docs/cli.md)".to_string()
+                } else {
+                    format!("other shipped maps that take it: {} (--map)", others.join(", "))
+                }
+            );
+        }
     }
     println!("foot penetration   {:.2} cm (max below floor)", m.foot_penetration_cm);
     println!(

@@ -129,6 +129,8 @@ pub struct CheckReport {
     pub source: PathBuf,
     /// The retarget map used (`None` for keyframes).
     pub map: Option<String>,
+    /// The shipped maps whose joints the source skeleton has (empty for keyframes).
+    pub fitting: Vec<String>,
     /// Per key point retarget error (empty for keyframes).
     pub points: Vec<PointError>,
     /// Mean and largest retarget error over all key points and frames, cm.
@@ -152,6 +154,7 @@ pub fn check(
     fps: Option<f64>,
     options: &RetargetOptions,
 ) -> Result<CheckReport> {
+    let mut fitting = Vec::new();
     let (clip, map_name, points, error_cm, seconds, fps_solved) = match source {
         ClipSource::Keyframes(p) => {
             let clip = LoadedKeyframes::load(p)?.to_clip(body)?;
@@ -159,6 +162,7 @@ pub fn check(
         }
         _ => {
             let (mocap, map) = import(source, map)?;
+            fitting = crate::map::fitting(map.map.format, &mocap.skeleton, source.path())?;
             let rt = retarget(&mocap, source.path(), &map, body, options)?;
             let (points, overall) = point_errors(&rt);
             let fps_solved = rt.clip.frame_count() as f64 / rt.seconds.max(1e-9);
@@ -173,6 +177,7 @@ pub fn check(
     Ok(CheckReport {
         source: source.path().to_path_buf(),
         map: map_name,
+        fitting,
         points,
         error_cm,
         motion,

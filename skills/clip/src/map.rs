@@ -316,6 +316,16 @@ pub fn shipped() -> Result<Vec<LoadedMap>> {
         .collect()
 }
 
+/// The names of the shipped maps for `format` whose every source joint is in `skeleton`: the
+/// maps `clip check` could use for it (`--map`).
+pub fn fitting(format: SourceFormat, skeleton: &Skeleton, source: &Path) -> Result<Vec<String>> {
+    Ok(shipped()?
+        .into_iter()
+        .filter(|m| m.map.format == format && m.check_source(skeleton, source).is_ok())
+        .map(|m| m.map.name)
+        .collect())
+}
+
 /// The shipped map for `format` whose every source joint is in `skeleton`; when several fit,
 /// the one whose joints cover the most of the skeleton. An error lists why each map failed.
 pub fn detect(format: SourceFormat, skeleton: &Skeleton, source: &Path) -> Result<LoadedMap> {
