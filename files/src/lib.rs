@@ -101,7 +101,7 @@ fn portable_word(word: &str, cwd: Option<&Path>, repo: &Path) -> String {
 }
 
 /// `p` with `.` dropped and `..` folded where it can be.
-fn normal(p: PathBuf) -> PathBuf {
+pub fn normal(p: PathBuf) -> PathBuf {
     let mut out = PathBuf::new();
     for c in p.components() {
         match c {

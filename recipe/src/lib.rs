@@ -25,7 +25,7 @@ pub mod slurm;
 pub mod store;
 
 use std::collections::BTreeMap;
-use std::path::{Component, Path, PathBuf};
+use std::path::{Path, PathBuf};
 
 use petgraph::graph::DiGraph;
 use serde::{Deserialize, Serialize};
@@ -621,20 +621,7 @@ fn path_parts(arg: &str) -> Vec<PathBuf> {
     value.split(',').filter(|p| !p.is_empty()).map(|p| normal(PathBuf::from(p))).collect()
 }
 
-/// `p` without `.` components, `..` folded where it can be.
-pub fn normal(p: PathBuf) -> PathBuf {
-    let mut out = PathBuf::new();
-    for c in p.components() {
-        match c {
-            Component::CurDir => {}
-            Component::ParentDir if out.file_name().is_some() => {
-                out.pop();
-            }
-            c => out.push(c),
-        }
-    }
-    out
-}
+pub use repertoire_files::normal;
 
 /// Whether one of the paths lies inside the other (or they are the same).
 fn overlaps(a: &Path, b: &Path) -> bool {

@@ -154,14 +154,7 @@ fn invocation_of(args: impl Iterator<Item = String>) -> String {
     let mut out = String::from("repertoire");
     for a in args {
         out.push(' ');
-        let plain = !a.is_empty() && a.chars().all(|c| c.is_ascii_alphanumeric() || "-_./,:=+@%".contains(c));
-        if plain {
-            out.push_str(&a);
-        } else {
-            out.push('\'');
-            out.push_str(&a.replace('\'', "'\\''"));
-            out.push('\'');
-        }
+        out.push_str(&repertoire_recipe::run::shell_quote(&a));
     }
     out
 }
