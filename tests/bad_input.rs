@@ -3,6 +3,7 @@
 mod common;
 
 use common::{temp_dir, write};
+use rand::SeedableRng;
 use repertoire::scenes::{BodyDef, Location, ScenarioFile, SceneError, WorldModel};
 
 fn load(dir: &std::path::Path, text: &str) -> Result<WorldModel, SceneError> {
@@ -53,7 +54,7 @@ fn inconsistent_values_are_explained() {
     for (text, expect) in [
         ("Scenario(name: \"x\", rates: (physics_hz: 240, control_hz: 50, meta_hz: 2))", "must divide physics_hz"),
         ("Scenario(name: \"x\", props: [Chair(name: \"c\", seat_height: (0.5, 0.4))])", "low end above its high end"),
-        ("Scenario(name: \"x\", skills: [\"walk\", \"moonwalk\"])", "unknown skill `moonwalk`"),
+        ("Scenario(name: \"x\", skills: [\"walk\", \"Moon-walk\"])", "skill name `Moon-walk`"),
         ("Scenario(name: \"x\", props: [Chair(name: \"c\"), Box(name: \"c\")])", "two props are named `c`"),
         ("Scenario(name: \"x\", props: [Ball(name: \"b\"), Box(name: \"k\", on: \"b\")])", "not on ball `b`"),
         ("Scenario(name: \"x\", curriculum: (zones: [\"front\"]))", "curriculum names zone `front`"),
@@ -125,14 +126,25 @@ fn an_mjcf_that_mujoco_rejects_passes_on_mujocos_message() {
 }
 
 #[test]
-fn a_body_that_names_its_own_floor_is_told_the_line_of_its_file() {
-    // A body file that ships its own floor geom (as many do): the scene adds one too. Where
-    // MuJoCo named a line of the composed model, the line of the user's file is named.
+fn a_body_that_brings_its_own_ground_stands_on_it_and_other_clashes_name_its_line() {
+    // A body file that ships its own ground plane (as many do) stands on it: the scene adds no
+    // second floor under it.
     let dir = temp_dir("own-floor");
     let builtin = BodyDef::humanoid();
     let xml = builtin.mjcf.replacen(
         "<worldbody>",
         "<worldbody>\n    <geom name=\"floor\" type=\"plane\" size=\"5 5 0.1\"/>",
+        1,
+    );
+    let model = user_body(&dir, &xml, &builtin.map_text).expect("a body with its own ground plane loads");
+    assert!(model.own_floor, "the body's plane is the floor");
+    let planes = model.mjcf.matches("type=\"plane\"").count();
+    assert_eq!(planes, 1, "one ground plane in the scene: {planes}");
+    // A geom called floor that is not a ground plane clashes with the scene's floor: the line
+    // of the user's file is named.
+    let xml = builtin.mjcf.replacen(
+        "<worldbody>",
+        "<worldbody>\n    <geom name=\"floor\" type=\"box\" size=\"0.1 0.1 0.1\" pos=\"5 5 0.1\"/>",
         1,
     );
     let line = xml.lines().position(|l| l.contains("name=\"floor\"")).unwrap() + 1;
@@ -148,22 +160,52 @@ fn a_body_that_names_its_own_floor_is_told_the_line_of_its_file() {
 }
 
 #[test]
-fn a_body_driven_by_torque_motors_is_refused_naming_the_actuators() {
-    // Joint-angle targets written into motors collapse the body in every trial: refuse it and
-    // say what to write instead.
+fn torque_motors_are_driven_as_pd_servos_and_other_actuators_refused() {
+    // Joint-angle targets written into motors would collapse the body: each motor of an
+    // actuated joint is driven as a PD servo from its peak torque (gain × control range × gear).
     let dir = temp_dir("motors");
     let builtin = BodyDef::humanoid();
     let mut xml = builtin.mjcf.clone();
     for knee in ["left_knee", "right_knee"] {
         let servo = format!(r#"<position name="{knee}" joint="{knee}" class="knee"/>"#);
         assert!(xml.contains(&servo), "the built-in body drives {knee} by a position servo");
-        xml = xml.replace(&servo, &format!(r#"<motor name="{knee}" joint="{knee}" gear="100" ctrlrange="-1 1"/>"#));
+        xml = xml.replace(&servo, &format!(r#"<motor name="{knee}" joint="{knee}" gear="100" ctrlrange="-3 3"/>"#));
     }
-    let msg = user_body(&dir, &xml, &builtin.map_text).err().expect("refused").to_string();
-    assert!(msg.contains("body.xml"), "{msg}");
-    assert!(msg.contains("2 actuators of the actuated joints are not position servos"), "{msg}");
-    assert!(msg.contains("`left_knee` (left_knee)") && msg.contains("`right_knee` (right_knee)"), "{msg}");
-    assert!(msg.contains("<position joint="), "says what to write: {msg}");
+    let model = user_body(&dir, &xml, &builtin.map_text).expect("motors are driven as PD servos");
+    let knees: Vec<_> = model.pd_motors.iter().map(|m| (m.joint.as_str(), m.kp, m.kv, m.max_torque)).collect();
+    assert_eq!(knees, [("right_knee", 600.0, 60.0, Some(300.0)), ("left_knee", 600.0, 60.0, Some(300.0))]);
+    // The knees hold the standing pose as the built-in servos do (kp 600 there too): the same
+    // pelvis height after a second of holding it.
+    let held = |m: WorldModel| -> f64 {
+        let m = std::sync::Arc::new(m);
+        let mut world = m.new_world();
+        world.reset(&mut rand::rngs::StdRng::seed_from_u64(1), 0.0, 0.0, 0.0);
+        let mut hold = vec![0.0; m.index.dof()];
+        world.joint_angles(&mut hold);
+        for _ in 0..60 {
+            world.step(&hold).expect("steps");
+        }
+        world.root_height()
+    };
+    let servos = user_body(&dir, &builtin.mjcf, &builtin.map_text).expect("the built-in body");
+    let (a, b) = (held(user_body(&dir, &xml, &builtin.map_text).unwrap()), held(servos));
+    assert!((a - b).abs() < 0.01, "pelvis {a:.3} m with the knees as motors, {b:.3} m as servos");
+    // Gains in the map win over the default.
+    let map = builtin.map_text.replacen("BodyMap(", "BodyMap(\n    motor_pd: (kp: Some(400.0)),", 1);
+    let model = user_body(&dir, &xml, &map).expect("map gains");
+    assert!(model.pd_motors.iter().all(|m| m.kp == 400.0 && m.kv == 40.0), "{:?}", model.pd_motors);
+    // A motor with no range gives no peak torque to take gains from: the map must give them.
+    let unlimited = xml.replace(r#"gear="100" ctrlrange="-3 3""#, r#"gear="100" ctrllimited="false""#);
+    let msg = user_body(&dir, &unlimited, &builtin.map_text).err().expect("refused").to_string();
+    assert!(msg.contains("body.map.ron") && msg.contains("neither a control nor a force range"), "{msg}");
+    assert!(msg.contains("motor_pd"), "says what to write: {msg}");
+    // A velocity servo is neither: refused, naming it and saying what to write.
+    let servo = r#"<position name="left_elbow" joint="left_elbow" class="elbow"/>"#;
+    assert!(builtin.mjcf.contains(servo));
+    let velocity = builtin.mjcf.replace(servo, r#"<velocity name="left_elbow" joint="left_elbow" kv="10"/>"#);
+    let msg = user_body(&dir, &velocity, &builtin.map_text).err().expect("refused").to_string();
+    assert!(msg.contains("body.xml") && msg.contains("`left_elbow` (left_elbow)"), "{msg}");
+    assert!(msg.contains("neither position servos nor torque motors") && msg.contains("<position joint="), "{msg}");
 }
 
 #[test]
@@ -177,6 +219,11 @@ fn a_floating_or_sunken_body_is_refused_saying_how_far_and_which_way() {
     let floating = builtin.mjcf.replace(standing, r#"<body name="pelvis" pos="0 0 1.073">"#);
     let msg = user_body(&dir, &floating, &builtin.map_text).err().expect("refused").to_string();
     assert!(msg.contains("body.xml") && msg.contains("11.6 cm above the floor") && msg.contains("lower"), "{msg}");
+    assert!(msg.contains("stand_on_floor: true"), "names the other way: {msg}");
+    // The map may ask for the default pose to be moved onto the floor instead.
+    let map = builtin.map_text.replacen("BodyMap(", "BodyMap(\n    stand_on_floor: true,", 1);
+    let model = user_body(&dir, &floating, &map).expect("moved onto the floor");
+    assert!((model.lowered_by - 0.115).abs() < 0.002 && model.sole_clearance().abs() < 1e-4, "{}", model.lowered_by);
     let sunken = builtin.mjcf.replace(standing, r#"<body name="pelvis" pos="0 0 0.908">"#);
     let msg = user_body(&dir, &sunken, &builtin.map_text).err().expect("refused").to_string();
     assert!(msg.contains("4.9 cm below the floor") && msg.contains("raise"), "{msg}");

@@ -197,33 +197,40 @@ fn meta_train_eval_and_the_main_job() {
     assert!(meta.join("eval/report.md").exists() && meta.join("eval/trials.csv").exists());
     // The controller with its sit timed by the planner's copy writes its own report.
     let args = ["meta", "eval", "--library", lib_s, "--trials", "1", "--zones", "front", "--horizon", "2"];
-    let text = ok(&repertoire(&[&args[..], &["--oracle-sit"]].concat()));
+    let text = ok(&repertoire(&[&args[..], &["--controller", "oracle-sit"]].concat()));
     assert!(text.contains("| front | 1 |") && text.contains("timed by the planner's copy"), "{text}");
     assert!(meta.join("eval-oracle-sit/report.md").exists());
     // A gate threshold without a gate, and a gate missing its files, are refused by name.
     let out = repertoire(&[&args[..], &["--ready-at", "0.3"]].concat());
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success() && err.contains("--readiness"), "{err}");
+    assert!(!out.status.success() && err.contains("--controller gated"), "{err}");
     let none = dir.join("no-readiness");
-    let out = repertoire(&[&args[..], &["--readiness", none.to_str().unwrap()]].concat());
+    let out = repertoire(&[&args[..], &["--controller", &format!("gated:{}", none.display())]].concat());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("no-readiness/readiness.ron"), "{err}");
-    let out = repertoire(&[&args[..], &["--oracle-sit", "--ready-at", "1.5"]].concat());
+    let out = repertoire(&[&args[..], &["--controller", "oracle-sit", "--ready-at", "1.5"]].concat());
     assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("not a probability"));
     // The controller checked in a copy before it commits writes its own report; it cannot be
     // combined with another way of choosing, and zero candidates are refused.
-    let text = ok(&repertoire(&[&args[..], &["--lookahead", "2", "--lookahead-searches", "1"]].concat()));
-    assert!(text.contains("| front | 1 |") && text.contains("controller with lookahead (2 candidates"), "{text}");
+    let text = ok(&repertoire(&[&args[..], &["--controller", "lookahead:2", "--lookahead-searches", "1"]].concat()));
+    assert!(text.contains("| front | 1 |") && text.contains("looking ahead 2 candidates a search"), "{text}");
     assert!(meta.join("eval-lookahead/report.md").exists());
     for bad in [
-        &["--lookahead", "0"][..],
+        &["--controller", "lookahead:0"][..],
+        &["--controller", "lookahead"],
+        &["--controller", "dance"],
+        &["--controller", "lookahead:2", "--oracle-sit"],
         &["--lookahead", "2", "--oracle-sit"],
+        &["--controller", "planner", "--meta", meta_s],
         &["--lookahead-searches", "2"],
         &["--lookahead-every-candidate"],
     ] {
         let out = repertoire(&[&args[..], bad].concat());
         assert!(!out.status.success(), "{bad:?} was accepted");
     }
+    // The older flags still choose as they did: --lookahead K is lookahead:K.
+    let text = ok(&repertoire(&[&args[..], &["--lookahead", "2", "--lookahead-searches", "1"]].concat()));
+    assert!(text.contains("looking ahead 2 candidates a search"), "{text}");
     // Two evaluations of the same trials compare trial by trial; other trials are refused.
     let (oracle, look, first) = (meta.join("eval-oracle-sit"), meta.join("eval-lookahead"), meta.join("eval"));
     let text = ok(&repertoire(&["meta", "compare", oracle.to_str().unwrap(), look.to_str().unwrap()]));
@@ -238,7 +245,7 @@ fn meta_train_eval_and_the_main_job() {
     // The main job runs the trained controller on the default scenario, with lookahead when asked.
     let text = ok(&repertoire(&["run", "--library", lib_s, "--trials", "1"]));
     assert!(text.contains("| front | 1 |") && text.contains("| behind | 1 |"), "{text}");
-    let text = ok(&repertoire(&["run", "--library", lib_s, "--trials", "1", "--lookahead", "2"]));
+    let text = ok(&repertoire(&["run", "--library", lib_s, "--trials", "1", "--controller", "lookahead:2"]));
     assert!(text.contains("looking ahead 2 candidates") && text.contains("| behind | 1 |"), "{text}");
     // Without a controller it says how to get one.
     let text = ok(&repertoire(&["run", "--meta", dir.join("none").to_str().unwrap(), "--seconds", "0.5"]));

@@ -53,7 +53,7 @@ fn meta_commands_name_the_missing_warehouse_and_toss_skills() {
 
 #[test]
 fn report_gathers_warehouse_and_toss_evaluations() {
-    use repertoire_meta::task_eval::{PhaseRow, PickupMap, StartGrid, TossReport, TossTrial, WarehouseReport};
+    use repertoire_meta::tasks::task_eval::{PhaseRow, PickupMap, StartGrid, TossReport, TossTrial, WarehouseReport};
     let dir = temp_dir("task-reports");
     let row = |p: &str| PhaseRow {
         start_phase: p.into(),
@@ -125,6 +125,10 @@ fn warehouse_evaluations_record_their_worst_episodes() {
     let args = ["--meta", meta_s, "--trials", "4", "--grid", "0", "--worst", "2", "--out", eval_s];
     let out = ok(&repertoire(&[&["meta", "eval", "scenes/warehouse.ron"][..], &args[..]].concat()));
     assert!(out.contains("2 worst episodes recorded"), "{out}");
+    // A search looks for a sit that succeeds: refused on the warehouse, naming the scenario.
+    let out = repertoire(&["meta", "eval", "scenes/warehouse.ron", "--meta", meta_s, "--controller", "lookahead:2"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("warehouse.ron") && err.contains("sitting scenarios only"), "{err}");
     let recs: Vec<_> = std::fs::read_dir(eval.join("worst"))
         .unwrap()
         .filter_map(|e| e.ok().map(|e| e.file_name().to_string_lossy().into_owned()))

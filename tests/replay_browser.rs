@@ -88,3 +88,49 @@ fn the_replay_page_names_the_prop_under_the_pelvis() {
     assert!(check.status.success(), "{}\n{stdout}", String::from_utf8_lossy(&check.stderr));
     assert!(stdout.contains("pelvis on box"), "{stdout}");
 }
+
+/// Width and height of a PNG, from its IHDR chunk.
+fn png_size(path: &Path) -> (u32, u32) {
+    let bytes = std::fs::read(path).expect("the PNG");
+    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n", "{} is not a PNG", path.display());
+    let be = |at: usize| u32::from_be_bytes(bytes[at..at + 4].try_into().unwrap());
+    (be(16), be(20))
+}
+
+#[test]
+fn a_filmstrip_tiles_evenly_spaced_frames_with_their_captions() {
+    // The warehouse fixture again: six frames from above, three to a row, into one PNG of
+    // 480 × (360 + a 22 px caption) tiles.
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let chromium = std::env::var("CHROMIUM").unwrap_or_else(|_| "/usr/bin/chromium".into());
+    assert!(Path::new(&chromium).exists(), "{chromium} is missing: {SETUP}");
+    let dir = common::temp_dir("filmstrip");
+    let (html, png) = (dir.join("warehouse.html"), dir.join("strip/warehouse.png"));
+    let rec = root.join("tests/data/falls/warehouse_headstand_on_pedestal.rec");
+    let run = |extra: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_repertoire"))
+            .args(["replay", rec.to_str().unwrap(), "-o", html.to_str().unwrap()])
+            .args(extra)
+            .env("CHROMIUM", &chromium)
+            .output()
+            .expect("run repertoire")
+    };
+    let out = run(&["--filmstrip", png.to_str().unwrap(), "--frames", "6", "--columns", "3", "--view", "top"]);
+    assert!(out.status.success(), "filmstrip failed: {}", String::from_utf8_lossy(&out.stderr));
+    assert_eq!(png_size(&png), (3 * 480, 2 * (360 + 22)));
+    // Drawn frames, not an empty sheet: a blank 1440 × 764 PNG compresses to a few kB.
+    let bytes = std::fs::metadata(&png).unwrap().len();
+    assert!(bytes > 100_000, "{} is only {bytes} bytes", png.display());
+    assert!(!png.with_extension("png.tmp").exists(), "the temporary file was left");
+    // More columns than frames: one row.
+    let out = run(&["--filmstrip", png.to_str().unwrap(), "--frames", "2", "--columns", "4"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert_eq!(png_size(&png), (2 * 480, 360 + 22));
+    for bad in [
+        &["--filmstrip", "x.png", "--frames", "0"][..],
+        &["--filmstrip", "x.png", "--view", "back"],
+        &["--frames", "3"],
+    ] {
+        assert!(!run(bad).status.success(), "{bad:?} was accepted");
+    }
+}

@@ -506,7 +506,7 @@ impl MetaEnv {
             zone: String::new(),
             chosen: Vec::new(),
             touched: None,
-            terminal: crate::planner::terminal_skills(&setup),
+            terminal: terminal_skills(&setup),
             record: None,
             decision: Decision::default(),
             setup,
@@ -695,7 +695,7 @@ impl MetaEnv {
     /// this decision's target. Returns the option that plays. [`Env::step`] is this, then
     /// [`MetaEnv::decision_tick`] until it says the decision is over, then
     /// [`MetaEnv::end_decision`]; a caller may drive the ticks itself (a skill fine-tuned in
-    /// the controller's episodes, [`crate::refine`]).
+    /// the controller's episodes, [`crate::handover::refine`]).
     pub fn begin_decision(&mut self, action: &[f32]) -> usize {
         let k = self.setup.skills.len();
         let option = self.setup.option_of(action);
@@ -1010,6 +1010,27 @@ pub fn fall_term(fell: bool, world: &World) -> f32 {
 
 /// `fell`'s value for a world whose state stopped being finite (no fall the test could name).
 pub const DIVERGED: f32 = 9.0;
+
+/// The seed stream of trial `i` of the `zi`-th zone of an evaluation with `trials` per zone:
+/// the same trial starts the same way in every tool that plays it.
+pub(crate) fn trial_rng(seed: u64, zi: usize, trials: usize, i: usize) -> EnvRng {
+    let mut rng = <EnvRng as rand::SeedableRng>::seed_from_u64(seed);
+    rng.set_stream((zi * trials + i) as u64 + 1);
+    rng
+}
+
+/// Which of `setup`'s skills are terminal: the graph leaves no way out of them but themselves
+/// (sit), so once chosen they play to the episode's end.
+pub fn terminal_skills(setup: &MetaSetup) -> Vec<bool> {
+    let k = setup.skills.len();
+    let mut mask = vec![false; k];
+    (0..k)
+        .map(|c| {
+            setup.graph.allowed(Some(c), &mut mask);
+            mask.iter().enumerate().all(|(j, &m)| !m || j == c)
+        })
+        .collect()
+}
 
 #[cfg(test)]
 mod detour_tests {

@@ -6,118 +6,17 @@ use std::fmt::Write as _;
 use std::path::Path;
 use std::sync::Arc;
 
-use rand::SeedableRng;
 use rayon::prelude::*;
-use repertoire_learn::acting::ActingHybrid;
-use repertoire_learn::env::{Env, EnvRng};
+use repertoire_learn::env::Env;
 use repertoire_report::{StartPoint, success_map, transition_matrix};
 use serde::{Deserialize, Serialize};
 
 use repertoire_scenes::world::PropPlacement;
 use repertoire_scenes::{FallCause, Recording};
 
-use crate::env::{MetaEnv, MetaSetup};
+use crate::controller::Controller;
+use crate::env::{MetaEnv, MetaSetup, trial_rng};
 use crate::error::{MetaError, Result};
-use crate::lookahead::{Lookahead, LookaheadConfig};
-use crate::planner::{Planner, PlannerConfig, terminal_skills};
-use crate::readiness::{Gate, Readiness, checked_act, terminal_choice};
-use repertoire_learn::classify::Classifier;
-
-/// What chooses the skills in an evaluation.
-#[derive(Clone, Copy)]
-pub enum Controller<'a> {
-    /// A trained meta-controller, acting by its mode.
-    Learned(&'a ActingHybrid),
-    /// The search-based reference over the same skills ([`crate::planner`]).
-    Planner(PlannerConfig),
-    /// A trained meta-controller whose terminal skills (sit) are checked in a copy of the
-    /// episode: at each decision a terminal skill that would succeed from here is taken, and
-    /// otherwise the controller chooses among the rest. An oracle of when to sit, with the
-    /// controller's own way there: it says how much of the gap to the planner is timing the sit.
-    Checked(&'a ActingHybrid, PlannerConfig),
-    /// A trained meta-controller gated by a learned readiness ([`crate::readiness`]): a
-    /// terminal skill (sit) only when the classifier gives it at least the threshold's chance of
-    /// succeeding from here, the other skills otherwise. No search: it acts from the
-    /// observation alone.
-    Gated(&'a ActingHybrid, &'a Readiness, Gate),
-    /// A trained meta-controller checked in a copy of the episode before it commits
-    /// ([`crate::lookahead`]): its own decision and ones drawn from its policy, each played
-    /// out with the controller after it; the first that succeeds is taken.
-    Lookahead(&'a ActingHybrid, LookaheadConfig),
-}
-
-impl<'a> From<&'a ActingHybrid> for Controller<'a> {
-    fn from(head: &'a ActingHybrid) -> Self {
-        Controller::Learned(head)
-    }
-}
-
-/// One episode's decision maker for a [`Controller`].
-pub(crate) enum Acting {
-    Learned(Box<ActingHybrid>),
-    Planner(Box<Planner>),
-    Checked(Box<ActingHybrid>, Box<Planner>),
-    Gated { head: Box<ActingHybrid>, readiness: Box<Classifier>, gate: Gate, terminal: Vec<bool> },
-    Lookahead(Box<Lookahead>),
-}
-
-impl Acting {
-    /// Whether the last decision differs from what the trained controller alone would have
-    /// chosen (a lookahead's search took another).
-    pub(crate) fn changed(&self) -> bool {
-        matches!(self, Acting::Lookahead(look) if look.changed)
-    }
-
-    /// Decisions simulated in copies of the episode so far (a search's cost).
-    pub(crate) fn simulated(&self) -> u64 {
-        match self {
-            Acting::Planner(planner) | Acting::Checked(_, planner) => planner.simulated,
-            Acting::Lookahead(look) => look.simulated,
-            Acting::Learned(_) | Acting::Gated { .. } => 0,
-        }
-    }
-
-    /// The decision for `env`, whose observation is `obs`, into `act` (`mask`: scratch).
-    pub(crate) fn act(&mut self, env: &MetaEnv, obs: &[f32], mask: &mut [bool], act: &mut [f32]) {
-        match self {
-            Acting::Learned(head) => {
-                env.option_mask(mask);
-                head.act(obs, mask, act);
-            }
-            Acting::Planner(planner) => planner.act(env, act),
-            Acting::Checked(head, planner) => checked_act(head, planner, env, obs, mask, act),
-            Acting::Gated { head, readiness, gate, terminal } => {
-                env.option_mask(mask);
-                if terminal_choice(mask, terminal) {
-                    gate.apply(readiness.probability(obs), mask, terminal);
-                }
-                head.act(obs, mask, act);
-            }
-            Acting::Lookahead(look) => look.act(env, obs, act),
-        }
-    }
-}
-
-impl Controller<'_> {
-    pub(crate) fn start(&self, setup: &Arc<MetaSetup>) -> Acting {
-        match self {
-            Controller::Learned(head) => Acting::Learned(Box::new((*head).clone())),
-            Controller::Planner(cfg) => Acting::Planner(Box::new(Planner::new(Arc::clone(setup), *cfg))),
-            Controller::Gated(head, readiness, gate) => Acting::Gated {
-                head: Box::new((*head).clone()),
-                readiness: Box::new(readiness.classifier.clone()),
-                gate: *gate,
-                terminal: terminal_skills(setup),
-            },
-            Controller::Checked(head, cfg) => {
-                Acting::Checked(Box::new((*head).clone()), Box::new(Planner::new(Arc::clone(setup), *cfg)))
-            }
-            Controller::Lookahead(head, cfg) => {
-                Acting::Lookahead(Box::new(Lookahead::new(Arc::clone(setup), head, *cfg)))
-            }
-        }
-    }
-}
 
 /// One trial's outcome.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -209,16 +108,15 @@ pub struct MetaReport {
 }
 
 /// Runs `trials` trials per zone in `zones` with `controller`, `batch` environments in parallel.
-pub fn evaluate<'c>(
+pub fn evaluate(
     setup: &Arc<MetaSetup>,
-    controller: impl Into<Controller<'c>>,
+    controller: &dyn Controller,
     zones: &[String],
     trials: usize,
     batch: usize,
     seed: u64,
 ) -> Result<MetaReport> {
     setup.check_zones(zones)?;
-    let controller = controller.into();
     let names: Vec<String> = setup.skills.iter().map(|s| s.name.clone()).collect();
     let mut all = Vec::new();
     for (zi, zone) in zones.iter().enumerate() {
@@ -227,7 +125,7 @@ pub fn evaluate<'c>(
             .collect::<Vec<_>>()
             .chunks(batch.max(1))
             .map(|chunk| {
-                chunk.par_iter().map(|&i| run_trial(setup, &controller, zi, zone, trials, i, seed, false).0).collect()
+                chunk.par_iter().map(|&i| run_trial(setup, controller, zi, zone, trials, i, seed, false).0).collect()
             })
             .collect();
         all.extend(chunks.into_iter().flatten());
@@ -235,20 +133,12 @@ pub fn evaluate<'c>(
     Ok(report(zones, names, all))
 }
 
-/// The seed stream of trial `i` of the `zi`-th zone of an evaluation with `trials` per zone:
-/// the same trial starts the same way in every tool that plays it.
-pub(crate) fn trial_rng(seed: u64, zi: usize, trials: usize, i: usize) -> EnvRng {
-    let mut rng = EnvRng::seed_from_u64(seed);
-    rng.set_stream((zi * trials + i) as u64 + 1);
-    rng
-}
-
 /// Runs trial `i` of zone `zone` (the `zi`-th of the evaluation's zones, `trials` per zone),
 /// seeded exactly as [`evaluate`] seeds it; with `record`, also its recording.
 #[allow(clippy::too_many_arguments)]
 fn run_trial(
     setup: &Arc<MetaSetup>,
-    controller: &Controller<'_>,
+    controller: &dyn Controller,
     zi: usize,
     zone: &str,
     trials: usize,
@@ -296,9 +186,9 @@ pub fn worst_trials(report: &MetaReport, n: usize, per_zone: bool) -> Vec<&Trial
 
 /// Runs `trial` of an evaluation over `zones` (`trials` per zone, `seed`) again, recorded. The
 /// controller acts by its mode, so the rerun is the same trial; an error if it is not.
-pub fn record_trial<'c>(
+pub fn record_trial(
     setup: &Arc<MetaSetup>,
-    controller: impl Into<Controller<'c>>,
+    controller: &dyn Controller,
     zones: &[String],
     trials: usize,
     seed: u64,
@@ -309,7 +199,7 @@ pub fn record_trial<'c>(
     })?;
     // Episodes draw their zone from the setup's list, as in the evaluation (one zone at a time).
     *setup.zones.write().expect("never poisoned") = vec![trial.zone.clone()];
-    let (again, rec) = run_trial(setup, &controller.into(), zi, &trial.zone, trials, trial.index, seed, true);
+    let (again, rec) = run_trial(setup, controller, zi, &trial.zone, trials, trial.index, seed, true);
     if again.min_distance != trial.min_distance || again.success != trial.success {
         return Err(MetaError::Invalid(format!(
             "trial {} of zone `{}` did not replay the same (min distance {} then {})",
@@ -322,9 +212,9 @@ pub fn record_trial<'c>(
 /// Records the worst trials of `report` into `dir` as `trial_<zone>_<index>.rec`; returns the
 /// files written.
 #[allow(clippy::too_many_arguments)]
-pub fn save_worst<'c>(
+pub fn save_worst(
     setup: &Arc<MetaSetup>,
-    controller: impl Into<Controller<'c>>,
+    controller: &dyn Controller,
     report: &MetaReport,
     zones: &[String],
     trials: usize,
@@ -338,7 +228,6 @@ pub fn save_worst<'c>(
         return Ok(Vec::new());
     }
     std::fs::create_dir_all(dir).map_err(|e| MetaError::Invalid(format!("{}: cannot create: {e}", dir.display())))?;
-    let controller = controller.into();
     let mut written = Vec::new();
     for t in worst {
         let path = dir.join(format!("trial_{}_{}.rec", t.zone, t.index));

@@ -554,7 +554,7 @@ pub fn evaluate(
         let mut slot: Vec<Option<usize>> = vec![None; b];
         let mut next = 0usize;
         let start = |env: &mut LatentMetaEnv, o: &mut [f32], i: usize| {
-            let mut rng = crate::eval::trial_rng(seed, zi, trials, i);
+            let mut rng = crate::env::trial_rng(seed, zi, trials, i);
             env.reset(&mut rng, o);
         };
         for (k, env) in envs.iter_mut().enumerate() {

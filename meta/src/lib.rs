@@ -4,24 +4,21 @@
 
 pub mod bind;
 pub mod compare;
-pub mod deliver;
-pub mod distill;
+pub mod controller;
 pub mod env;
 pub mod error;
 pub mod eval;
+pub mod evaluation;
 pub mod graph;
+pub mod handover;
 pub mod judge;
 pub mod latent;
-pub mod lookahead;
-pub mod planner;
-pub mod readiness;
-pub mod refine;
+pub mod search;
 pub mod task;
-pub mod task_eval;
-pub mod toss;
+pub mod tasks;
 pub mod train;
-pub mod warehouse;
 
+pub use controller::{Controller, Decider};
 pub use env::{MetaEnv, MetaSetup};
 pub use error::{MetaError, Result};
 pub use graph::SkillGraph;

@@ -11,8 +11,8 @@ use repertoire_skill::reference::to_heading;
 
 use crate::error::{MetaError, Result};
 use crate::judge::SitJudge;
-use crate::toss::{TossFacts, TossJudge, TossSpec, ball_velocity};
-use crate::warehouse::{WarehouseFacts, WarehouseJudge, WarehouseSpec, place_from_pool, place_holding};
+use crate::tasks::toss::{TossFacts, TossJudge, TossSpec, ball_velocity};
+use crate::tasks::warehouse::{WarehouseFacts, WarehouseJudge, WarehouseSpec, place_from_pool, place_holding};
 
 /// Names of the sitting task's per-episode figures in `StepOutcome::terms`.
 pub const SIT_TERMS: [&str; 5] = ["success", "min_distance", "fell", "seconds", "switches"];
@@ -49,9 +49,9 @@ pub enum TaskSpec {
         /// outside the sit (the scenario's `touch_penalty`; see [`TaskState::decision_reward`]).
         touch_penalty: f64,
     },
-    /// The warehouse (see [`crate::warehouse`]).
+    /// The warehouse (see [`crate::tasks::warehouse`]).
     Warehouse(WarehouseSpec),
-    /// The toss (see [`crate::toss`]).
+    /// The toss (see [`crate::tasks::toss`]).
     Toss(TossSpec),
 }
 

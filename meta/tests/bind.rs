@@ -7,7 +7,7 @@ use std::path::Path;
 use std::sync::Arc;
 
 use repertoire_learn::env::{Env, EnvRng};
-use repertoire_meta::warehouse::place_holding;
+use repertoire_meta::tasks::warehouse::place_holding;
 use repertoire_meta::{EpisodeOverride, MetaEnv, MetaSetup, SkillGraph, TaskState};
 use repertoire_scenes::scenario::WarehousePhase;
 use repertoire_scenes::world::PropMount;

@@ -9,6 +9,7 @@ use std::sync::{Arc, OnceLock};
 use rand::SeedableRng;
 use repertoire_learn::env::{Env, EnvRng};
 use repertoire_learn::ppo::PpoConfig;
+use repertoire_meta::controller::{LookingAhead, OracleSit};
 use repertoire_meta::eval::evaluate;
 use repertoire_meta::train::{CRITIC_FILE, MetaTrainOptions, Resume, load, train};
 use repertoire_meta::{MetaEnv, MetaSetup, SkillGraph};
@@ -265,7 +266,7 @@ fn the_planners_copy_of_an_episode_plays_out_exactly_as_the_episode() {
     // The planner's premise: a plan simulated in its copy (snapshot, restore, step) ends where
     // the episode itself ends given the same decisions, bit for bit, also from mid-episode,
     // where MuJoCo's derived quantities belong to the state before the last substep.
-    use repertoire_meta::planner::{Planner, PlannerConfig, write_action};
+    use repertoire_meta::search::planner::{Planner, PlannerConfig, write_action};
     let s = setup(None);
     let mut planner = Planner::new(Arc::clone(&s), PlannerConfig::default());
     // Walk (two targets; walk_to reads them), a left turn, then sit.
@@ -298,13 +299,12 @@ fn the_planners_copy_of_an_episode_plays_out_exactly_as_the_episode() {
 
 #[test]
 fn the_planner_evaluates_reproducibly_and_only_plays_what_the_graph_allows() {
-    use repertoire_meta::eval::Controller;
-    use repertoire_meta::planner::PlannerConfig;
+    use repertoire_meta::search::planner::PlannerConfig;
     let s = setup(None);
     let cfg = PlannerConfig { horizon: 4, repeats: 1 };
     let zones = ["front".to_string()];
-    let a = evaluate(&s, Controller::Planner(cfg), &zones, 3, 3, 7).expect("planner evaluation");
-    let b = evaluate(&s, Controller::Planner(cfg), &zones, 3, 3, 7).expect("again");
+    let a = evaluate(&s, &cfg, &zones, 3, 3, 7).expect("planner evaluation");
+    let b = evaluate(&s, &cfg, &zones, 3, 3, 7).expect("again");
     assert_eq!(a, b, "the planner is deterministic for a seed");
     assert_eq!(a.trials.len(), 3);
     for t in &a.trials {
@@ -320,8 +320,8 @@ fn the_planner_evaluates_reproducibly_and_only_plays_what_the_graph_allows() {
 
 #[test]
 fn the_planner_distilled_is_a_controller_that_loads_and_evaluates() {
-    use repertoire_meta::distill::{DistillOptions, Teacher, distill};
-    use repertoire_meta::planner::PlannerConfig;
+    use repertoire_meta::handover::distill::{DistillOptions, Teacher, distill};
+    use repertoire_meta::search::planner::PlannerConfig;
     let s = setup(None);
     let out = std::env::temp_dir().join(format!("repertoire-distill-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&out);
@@ -431,14 +431,13 @@ fn a_walk_that_takes_a_target_is_steered_every_decision() {
 
 #[test]
 fn deliveries_record_the_seat_where_the_controller_hands_over_within_the_window() {
-    use repertoire_meta::deliver::{DeliveryWindow, deliver};
-    use repertoire_meta::eval::Controller;
-    use repertoire_meta::planner::PlannerConfig;
+    use repertoire_meta::handover::deliver::{DeliveryWindow, deliver};
+    use repertoire_meta::search::planner::PlannerConfig;
     let s = setup(None);
-    let planner = Controller::Planner(PlannerConfig { horizon: 2, repeats: 0 });
+    let planner = PlannerConfig { horizon: 2, repeats: 0 };
     let zones = ["front".to_string(), "sides".to_string()];
     let window = |max_offset_m, max_turn_deg| DeliveryWindow { expected: [-0.4, 0.0, 0.0], max_offset_m, max_turn_deg };
-    let all = deliver(&s, planner, "sit", &zones, 2, 3, Some(window(100.0, 180.0)), 1000).expect("deliver");
+    let all = deliver(&s, &planner, "sit", &zones, 2, 3, Some(window(100.0, 180.0)), 1000).expect("deliver");
     assert_eq!(all.episodes, 4);
     assert!(all.decisions >= 4, "at least the first decision of each episode: {}", all.decisions);
     assert_eq!(all.in_window, all.decisions, "an unbounded window keeps every decision");
@@ -452,31 +451,31 @@ fn deliveries_record_the_seat_where_the_controller_hands_over_within_the_window(
     // The start states: standing 1.5 m or more from the chair, so the seat is well away.
     let far = all.pool.states.iter().filter(|st| st.seat.is_some_and(|p| p[0].hypot(p[1]) > 1.0)).count();
     assert!(far >= 4, "{far} states with the seat over 1 m away");
-    let again = deliver(&s, planner, "sit", &zones, 2, 3, Some(window(100.0, 180.0)), 1000).expect("again");
+    let again = deliver(&s, &planner, "sit", &zones, 2, 3, Some(window(100.0, 180.0)), 1000).expect("again");
     assert_eq!(again.pool, all.pool, "reproducible for a seed");
     // No window (a skill without a seat goal, the stand): every decision is kept, seat and all.
-    let open = deliver(&s, planner, "sit", &zones, 2, 3, None, 1000).expect("no window");
+    let open = deliver(&s, &planner, "sit", &zones, 2, 3, None, 1000).expect("no window");
     assert_eq!((open.in_window, open.handovers_in_window), (open.decisions, open.handovers));
     assert_eq!(open.pool, all.pool, "no window keeps what an unbounded one does");
 
     // A window keeps exactly the states whose seat lies in it; the cap spreads what it keeps.
     let w = window(1.8, 90.0);
-    let some = deliver(&s, planner, "sit", &zones, 2, 3, Some(w), 1000).expect("deliver");
+    let some = deliver(&s, &planner, "sit", &zones, 2, 3, Some(w), 1000).expect("deliver");
     let inside = all.pool.states.iter().filter(|st| w.contains(st.seat.unwrap())).count();
     assert_eq!(some.in_window, inside);
     assert_eq!(some.handovers, all.handovers, "the window only filters what is kept");
     assert!(some.handovers_in_window <= some.handovers);
     assert!(some.pool.states.iter().all(|st| w.contains(st.seat.unwrap())));
-    let capped = deliver(&s, planner, "sit", &zones, 2, 3, Some(window(100.0, 180.0)), 3).expect("capped");
+    let capped = deliver(&s, &planner, "sit", &zones, 2, 3, Some(window(100.0, 180.0)), 3).expect("capped");
     assert!(capped.pool.states.len() <= 3 && !capped.pool.states.is_empty());
     assert_eq!(capped.pool.states[0], all.pool.states[0]);
-    let none = deliver(&s, planner, "sit", &zones, 2, 3, Some(window(0.0, 0.0)), 1000).expect("deliver");
+    let none = deliver(&s, &planner, "sit", &zones, 2, 3, Some(window(0.0, 0.0)), 1000).expect("deliver");
     assert_eq!(none.in_window, 0);
     assert_eq!(none.handover_pool, all.handover_pool, "handovers are kept whatever the window");
 
-    let err = deliver(&s, planner, "dance", &zones, 1, 3, Some(w), 10).expect_err("unknown skill").to_string();
+    let err = deliver(&s, &planner, "dance", &zones, 1, 3, Some(w), 10).expect_err("unknown skill").to_string();
     assert!(err.contains("`dance`") && err.contains("walk"), "{err}");
-    let err = deliver(&s, planner, "sit", &["nowhere".to_string()], 1, 3, Some(w), 10).expect_err("zone").to_string();
+    let err = deliver(&s, &planner, "sit", &["nowhere".to_string()], 1, 3, Some(w), 10).expect_err("zone").to_string();
     assert!(err.contains("nowhere"), "{err}");
 }
 
@@ -757,7 +756,7 @@ fn guarded_setup(within_m: f64) -> Arc<MetaSetup> {
 fn the_planner_searches_only_what_the_guards_allow() {
     // Far from the chair a guarded sit is no option: the planner neither picks it nor spends
     // simulations on plans through it, as it does without the guard.
-    use repertoire_meta::planner::{Planner, PlannerConfig};
+    use repertoire_meta::search::planner::{Planner, PlannerConfig};
     let cfg = PlannerConfig { horizon: 2, repeats: 0 };
     let mut searched = Vec::new();
     for s in [setup(None), guarded_setup(0.05)] {
@@ -1040,9 +1039,8 @@ fn tiny_controller(s: &Arc<MetaSetup>, dir: &Path) -> repertoire_learn::acting::
 
 #[test]
 fn the_lookahead_plays_out_what_its_copy_showed_and_with_one_candidate_is_the_controller() {
-    use repertoire_meta::distill::{DistillOptions, Teacher, distill};
-    use repertoire_meta::eval::Controller;
-    use repertoire_meta::lookahead::{Lookahead, LookaheadConfig};
+    use repertoire_meta::handover::distill::{DistillOptions, Teacher, distill};
+    use repertoire_meta::search::lookahead::{Lookahead, LookaheadConfig};
     let s = setup(None);
     let dir = std::env::temp_dir().join(format!("repertoire-lookahead-{}", std::process::id()));
     let mut head = tiny_controller(&s, &dir);
@@ -1050,11 +1048,11 @@ fn the_lookahead_plays_out_what_its_copy_showed_and_with_one_candidate_is_the_co
     // One candidate is the controller's own decision, never searched: the same trials.
     let alone = evaluate(&s, &head, &zones, 3, 3, 5).expect("controller");
     let one = LookaheadConfig { candidates: 1, searches: 4, seed: 0, skip_known: true };
-    assert_eq!(evaluate(&s, Controller::Lookahead(&head, one), &zones, 3, 3, 5).expect("lookahead"), alone);
+    assert_eq!(evaluate(&s, &LookingAhead { head: &head, lookahead: one }, &zones, 3, 3, 5).expect("lookahead"), alone);
     // Reproducible for a seed, and every trial the controller seats it seats too.
     let cfg = LookaheadConfig { candidates: 3, searches: 2, seed: 9, skip_known: true };
-    let a = evaluate(&s, Controller::Lookahead(&head, cfg), &zones, 3, 3, 5).expect("lookahead");
-    assert_eq!(a, evaluate(&s, Controller::Lookahead(&head, cfg), &zones, 3, 3, 5).expect("again"));
+    let a = evaluate(&s, &LookingAhead { head: &head, lookahead: cfg }, &zones, 3, 3, 5).expect("lookahead");
+    assert_eq!(a, evaluate(&s, &LookingAhead { head: &head, lookahead: cfg }, &zones, 3, 3, 5).expect("again"));
     for (l, c) in a.trials.iter().zip(&alone.trials) {
         assert!(l.success || !c.success, "the controller seated trial {} and the lookahead did not", c.index);
         assert!(l.simulated >= 1 && c.simulated == 0, "the search's cost is counted: {l:?}");
@@ -1064,9 +1062,10 @@ fn the_lookahead_plays_out_what_its_copy_showed_and_with_one_candidate_is_the_co
     // the controller's own decision the last search played out) changes no decision, only the
     // cost.
     let wide = LookaheadConfig { candidates: 6, searches: 3, seed: 2, skip_known: true };
-    let skip = evaluate(&s, Controller::Lookahead(&head, wide), &zones, 3, 3, 5).expect("skipping");
+    let skip = evaluate(&s, &LookingAhead { head: &head, lookahead: wide }, &zones, 3, 3, 5).expect("skipping");
     let every = LookaheadConfig { skip_known: false, ..wide };
-    let mut all = evaluate(&s, Controller::Lookahead(&head, every), &zones, 3, 3, 5).expect("every candidate");
+    let mut all =
+        evaluate(&s, &LookingAhead { head: &head, lookahead: every }, &zones, 3, 3, 5).expect("every candidate");
     let (cost, full): (u64, u64) =
         (skip.trials.iter().map(|t| t.simulated).sum(), all.trials.iter().map(|t| t.simulated).sum());
     assert!(cost < full, "skipping saves simulation: {cost} of {full} decisions");
@@ -1141,16 +1140,15 @@ fn the_oracle_sits_only_where_the_sit_succeeds_and_readiness_needs_a_ready_decis
     // `meta eval --oracle-sit`: the controller's sits timed by the planner's copy. A trial
     // that ends in the sit is one the copy saw succeed, so it succeeded; evaluation stays
     // reproducible for a seed.
-    use repertoire_meta::eval::Controller;
-    use repertoire_meta::planner::PlannerConfig;
-    use repertoire_meta::readiness::{ReadinessOptions, learn};
+    use repertoire_meta::handover::readiness::{ReadinessOptions, learn};
+    use repertoire_meta::search::planner::PlannerConfig;
     let s = setup(None);
     let dir = std::env::temp_dir().join(format!("repertoire-readiness-{}", std::process::id()));
     let head = tiny_controller(&s, &dir);
     let cfg = PlannerConfig { horizon: 4, repeats: 0 };
     let zones = vec!["front".to_string()];
-    let a = evaluate(&s, Controller::Checked(&head, cfg), &zones, 3, 3, 5).expect("oracle evaluation");
-    let b = evaluate(&s, Controller::Checked(&head, cfg), &zones, 3, 3, 5).expect("again");
+    let a = evaluate(&s, &OracleSit { head: &head, planner: cfg }, &zones, 3, 3, 5).expect("oracle evaluation");
+    let b = evaluate(&s, &OracleSit { head: &head, planner: cfg }, &zones, 3, 3, 5).expect("again");
     assert_eq!(a, b);
     for t in &a.trials {
         if t.skills.last().map(String::as_str) == Some("sit") {
@@ -1176,10 +1174,11 @@ fn the_oracle_sits_only_where_the_sit_succeeds_and_readiness_needs_a_ready_decis
         Err(e) => assert!(e.to_string().contains("nothing to learn readiness from"), "{e}"),
         Ok(m) => {
             assert!(m.train.ready > 0 && m.train.decisions >= m.train.ready, "{m:?}");
-            let r = repertoire_meta::readiness::Readiness::load(&dir.join("readiness"), &s).expect("loads");
+            let r = repertoire_meta::handover::readiness::Readiness::load(&dir.join("readiness"), &s).expect("loads");
             assert_eq!(r.manifest, m);
             let chain = setup(Some(SkillGraph::chain(&["walk_to", "turn_left", "sit"])));
-            let err = repertoire_meta::readiness::Readiness::load(&dir.join("readiness"), &chain).err().unwrap();
+            let err =
+                repertoire_meta::handover::readiness::Readiness::load(&dir.join("readiness"), &chain).err().unwrap();
             assert!(err.to_string().contains("readiness.ron"), "{err}");
         }
     }

@@ -9,7 +9,7 @@ use std::sync::Arc;
 use rand::SeedableRng;
 use repertoire_learn::acting::ActingPolicy;
 use repertoire_learn::env::{Env, EnvRng, StepOutcome};
-use repertoire_meta::refine::{REFINE_TERMS, RefineEnv, RefineSetup};
+use repertoire_meta::handover::refine::{REFINE_TERMS, RefineEnv, RefineSetup};
 use repertoire_meta::train::load;
 use repertoire_meta::{MetaEnv, MetaSetup, SkillGraph};
 use repertoire_scenes::{ScenarioFile, WorldModel};

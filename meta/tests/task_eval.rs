@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use repertoire_learn::ppo::PpoConfig;
-use repertoire_meta::task_eval::{
+use repertoire_meta::tasks::task_eval::{
     StartGrid, evaluate_toss, evaluate_warehouse, save_worst_toss, save_worst_warehouse, worst_toss, worst_warehouse,
 };
 use repertoire_meta::train::{MetaTrainOptions, load, train};

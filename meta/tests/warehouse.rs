@@ -12,7 +12,7 @@ use rand::SeedableRng;
 use rand::rngs::StdRng;
 use repertoire_learn::env::{Env, EnvRng};
 use repertoire_meta::task::WAREHOUSE_TERMS;
-use repertoire_meta::warehouse::{WarehouseFacts, WarehouseJudge, WarehouseSpec, place_holding};
+use repertoire_meta::tasks::warehouse::{WarehouseFacts, WarehouseJudge, WarehouseSpec, place_holding};
 use repertoire_meta::{EpisodeOverride, MetaEnv, MetaSetup, SkillGraph, TaskSpec, TaskState};
 use repertoire_scenes::scenario::{Task, WarehousePhase};
 use repertoire_scenes::{ScenarioFile, World, WorldModel};

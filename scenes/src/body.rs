@@ -13,8 +13,11 @@ use std::path::{Path, PathBuf};
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct BodyMap {
-    /// The free joint at the root of the body.
-    pub root_joint: String,
+    /// The free joint at the root of the body, on the pelvis. Left out: the pelvis's own free
+    /// joint, or, when the pelvis has no joint at all (a body written to be attached, as
+    /// dm_control's), one Repertoire adds ([`ADDED_ROOT_JOINT`]).
+    #[serde(default)]
+    pub root_joint: Option<String>,
     /// The pelvis body (the free joint's body).
     pub pelvis: String,
     /// The upper-body body (chest or torso).
@@ -40,8 +43,55 @@ pub struct BodyMap {
     /// Touch sensors on the hands, in observation order.
     #[serde(default)]
     pub hand_touch_sensors: Vec<String>,
-    /// Actuated joints in policy order; each is driven by exactly one actuator.
+    /// Actuated joints in policy order; each is driven by exactly one actuator: a position
+    /// servo, or a torque motor, which is driven as a PD servo ([`MotorPd`]).
     pub actuated_joints: Vec<String>,
+    /// Gains of the torque motors among the actuated joints' actuators.
+    #[serde(default)]
+    pub motor_pd: MotorPd,
+    /// Move the default pose (every joint at 0) up or down until the feet's lowest point is on
+    /// the floor, instead of refusing a body that floats or sinks (a third-party file whose
+    /// root stands at another height, used without an edit). `scene check` says by how much.
+    #[serde(default)]
+    pub stand_on_floor: bool,
+}
+
+/// How torque motors (`<motor>`, as gymnasium's and dm_control's humanoids have) are driven.
+/// Policies write joint-angle targets; a motor would take them as torques. Each motor of an
+/// actuated joint is therefore driven as a PD servo, computed by MuJoCo every physics step:
+/// torque = kp·(target − q) − kv·q̇, limited to the motor's own peak torque (its control range
+/// times its gain and gear). The body's file is not changed; `scene check` lists the gains.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MotorPd {
+    /// Stiffness (N·m/rad) of every motor. Default: twice the motor's peak torque, so it
+    /// saturates half a radian from its target (the built-in humanoid's servos are so tuned).
+    #[serde(default)]
+    pub kp: Option<f64>,
+    /// Damping (N·m·s/rad). Default: a tenth of kp.
+    #[serde(default)]
+    pub kv: Option<f64>,
+    /// Per joint: (kp, kv), over the two above.
+    #[serde(default)]
+    pub joints: std::collections::BTreeMap<String, (f64, f64)>,
+}
+
+/// The free joint Repertoire adds to a pelvis without one.
+pub const ADDED_ROOT_JOINT: &str = "repertoire/root";
+
+/// A torque motor of an actuated joint, driven as a PD servo ([`MotorPd`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PdMotor {
+    /// The actuator's name.
+    pub actuator: String,
+    /// Its joint.
+    pub joint: String,
+    /// Stiffness (N·m/rad).
+    pub kp: f64,
+    /// Damping (N·m·s/rad).
+    pub kv: f64,
+    /// Peak torque (N·m), `None` when the motor has no limit.
+    pub max_torque: Option<f64>,
 }
 
 /// A body ready to be placed in a scene: its MJCF text and its map, with where each came from.
@@ -83,15 +133,78 @@ impl BodyDef {
         let mjcf = read(mjcf_path)?;
         let map_text = read(map_path)?;
         let map = parse_map(map_path, &map_text)?;
-        Ok(Self { mjcf, mjcf_path: mjcf_path.to_path_buf(), map, map_path: map_path.to_path_buf(), map_text })
+        let mut def =
+            Self { mjcf, mjcf_path: mjcf_path.to_path_buf(), map, map_path: map_path.to_path_buf(), map_text };
+        def.add_root_joint()?;
+        Ok(def)
+    }
+
+    /// Gives a pelvis without any joint a free joint ([`ADDED_ROOT_JOINT`]) when the map names
+    /// no root joint: a body written to be attached to something (dm_control's) becomes one
+    /// that stands on the floor. The joint goes on the pelvis tag's own line, so MuJoCo's line
+    /// numbers still point into the user's file.
+    fn add_root_joint(&mut self) -> Result<()> {
+        if self.map.root_joint.is_some() {
+            return Ok(());
+        }
+        let model = compile(&self.mjcf, &self.mjcf_path)?;
+        let Some(pelvis) = model.name_to_id(MjtObjBase::mjOBJ_BODY, &self.map.pelvis) else {
+            return Ok(()); // BodyIndex::resolve names the missing pelvis
+        };
+        if model.body_jntnum()[pelvis] > 0 {
+            return Ok(());
+        }
+        let open = format!("<body name=\"{}\"", self.map.pelvis);
+        let at = self.mjcf.find(&open).and_then(|i| self.mjcf[i..].find('>').map(|j| i + j));
+        match at {
+            Some(end) if !self.mjcf[..end].ends_with('/') => {
+                self.mjcf.insert_str(end + 1, &format!("<freejoint name=\"{ADDED_ROOT_JOINT}\"/>"));
+                Ok(())
+            }
+            _ => Err(self.map_error(
+                &self.map.pelvis.clone(),
+                format!(
+                    "the pelvis `{}` has no joint and no `<body name=\"{}\">` tag to add a free joint to in {}; \
+                     give it `<freejoint/>` or name its root_joint",
+                    self.map.pelvis,
+                    self.map.pelvis,
+                    self.mjcf_path.display()
+                ),
+            )),
+        }
     }
 
     /// Compiles the body alone, so MuJoCo's messages (with line numbers) refer to the user's
     /// own file, and checks the map against it.
     pub fn check(&self) -> Result<(MjModel, BodyIndex)> {
-        let model = compile(&self.mjcf, &self.mjcf_path)?;
+        let mut model = compile(&self.mjcf, &self.mjcf_path)?;
+        drive_motors_as_pd(&mut model, self)?;
         let index = BodyIndex::resolve(&model, self)?;
         Ok((model, index))
+    }
+
+    /// The name of the body's root joint: the map's, or the pelvis's own free joint, or the
+    /// one added to it.
+    fn root_joint<'a>(&'a self, model: &'a MjModel, pelvis: usize) -> Result<&'a str> {
+        if let Some(name) = &self.map.root_joint {
+            return Ok(name);
+        }
+        let first = model.body_jntadr()[pelvis];
+        let count = model.body_jntnum()[pelvis];
+        (first..first + count)
+            .map(|j| j as usize)
+            .find(|&j| model.jnt_type()[j] == MjtJoint::mjJNT_FREE)
+            .and_then(|j| model.id_to_name(MjtObjBase::mjOBJ_JOINT, j))
+            .ok_or_else(|| {
+                self.map_error(
+                    &self.map.pelvis,
+                    format!(
+                        "the pelvis `{}` has no free joint and the map names no root_joint (a pelvis with joints \
+                         but no free joint cannot stand on the floor: give it `<freejoint/>`)",
+                        self.map.pelvis
+                    ),
+                )
+            })
     }
 
     /// A stable 64-bit content hash of the MJCF and the map (FNV-1a), recorded by skills so a
@@ -118,6 +231,90 @@ pub fn compile(mjcf: &str, file: &Path) -> Result<MjModel> {
         file: file.to_path_buf(),
         message: e.to_string().trim().trim_start_matches("model load failed: ").to_string(),
     })
+}
+
+/// Drives every torque motor of `def`'s actuated joints as a PD servo in `model` ([`MotorPd`]):
+/// gain kp/g, bias −kp/g²·length − kv/g²·velocity (g the motor's gear), so the joint sees
+/// kp·(ctrl − q) − kv·q̇ with ctrl a joint angle; the control range becomes the joint's range and
+/// the force range the motor's own. Position servos and anything else are left to
+/// [`BodyIndex::resolve`]. Returns the motors it converted.
+pub fn drive_motors_as_pd(model: &mut MjModel, def: &BodyDef) -> Result<Vec<PdMotor>> {
+    let mut driven = Vec::new();
+    for name in &def.map.actuated_joints {
+        let Some(j) = model.name_to_id(MjtObjBase::mjOBJ_JOINT, name) else { continue };
+        let drivers: Vec<usize> = (0..model.actuator_trntype().len())
+            .filter(|&a| {
+                model.actuator_trntype()[a] == MjtTrn::mjTRN_JOINT && model.actuator_trnid()[a][0] as usize == j
+            })
+            .collect();
+        let [a] = drivers[..] else { continue };
+        let motor = model.actuator_gaintype()[a] == MjtGain::mjGAIN_FIXED
+            && model.actuator_biastype()[a] == MjtBias::mjBIAS_NONE
+            && model.actuator_dyntype()[a] == MjtDyn::mjDYN_NONE
+            && model.actuator_gainprm()[a][0] != 0.0;
+        if !motor {
+            continue;
+        }
+        let actuator = model.id_to_name(MjtObjBase::mjOBJ_ACTUATOR, a).unwrap_or("(unnamed)").to_string();
+        let g = model.actuator_gear()[a][0];
+        let gain = model.actuator_gainprm()[a][0];
+        // The force range in actuator units: the control range times the gain, else the
+        // motor's force range, else none.
+        let force = if model.actuator_ctrllimited()[a] {
+            let [lo, hi] = model.actuator_ctrlrange()[a];
+            Some([(lo * gain).min(hi * gain), (lo * gain).max(hi * gain)])
+        } else if model.actuator_forcelimited()[a] {
+            Some(model.actuator_forcerange()[a])
+        } else {
+            None
+        };
+        let max_torque = force.map(|[lo, hi]| lo.abs().max(hi.abs()) * g.abs());
+        let pd = &def.map.motor_pd;
+        let (kp, kv) = match (pd.joints.get(name), pd.kp, max_torque) {
+            (Some(&(kp, kv)), _, _) => (kp, kv),
+            (None, Some(kp), _) => (kp, pd.kv.unwrap_or(kp / 10.0)),
+            (None, None, Some(t)) => (2.0 * t, pd.kv.unwrap_or(0.2 * t)),
+            (None, None, None) => {
+                return Err(def.map_error(
+                    name,
+                    format!(
+                        "the motor `{actuator}` of `{name}` has neither a control nor a force range, so its PD gains \
+                         cannot be taken from its peak torque: give them in the map, \
+                         `motor_pd: (kp: Some(…), kv: Some(…))` or per joint `joints: {{\"{name}\": (kp, kv)}}`"
+                    ),
+                ));
+            }
+        };
+        if !(kp > 0.0 && kv >= 0.0 && g != 0.0 && kp.is_finite() && kv.is_finite()) {
+            return Err(def.map_error(
+                name,
+                format!(
+                    "the motor `{actuator}` of `{name}`: kp {kp} must be positive, kv {kv} at least 0, gear {g} not 0"
+                ),
+            ));
+        }
+        // SAFETY: the gain and bias types written are valid MuJoCo enum values.
+        unsafe {
+            model.actuator_gainprm_mut()[a] = [0.0; 10];
+            model.actuator_gainprm_mut()[a][0] = kp / g;
+            model.actuator_biastype_mut()[a] = MjtBias::mjBIAS_AFFINE;
+        }
+        model.actuator_biasprm_mut()[a] = [0.0; 10];
+        model.actuator_biasprm_mut()[a][1] = -kp / (g * g);
+        model.actuator_biasprm_mut()[a][2] = -kv / (g * g);
+        if model.jnt_limited()[j] {
+            model.actuator_ctrlrange_mut()[a] = model.jnt_range()[j];
+            model.actuator_ctrllimited_mut()[a] = true;
+        } else {
+            model.actuator_ctrllimited_mut()[a] = false;
+        }
+        if let Some(range) = force {
+            model.actuator_forcerange_mut()[a] = range;
+            model.actuator_forcelimited_mut()[a] = true;
+        }
+        driven.push(PdMotor { actuator, joint: name.clone(), kp, kv, max_torque });
+    }
+    Ok(driven)
 }
 
 /// FNV-1a over several byte slices.
@@ -201,19 +398,26 @@ impl BodyIndex {
         let feet = [body("left_foot", &map.left_foot)?, body("right_foot", &map.right_foot)?];
         let hands = [body("left_hand", &map.left_hand)?, body("right_hand", &map.right_hand)?];
 
-        let root = model.name_to_id(MjtObjBase::mjOBJ_JOINT, &map.root_joint).ok_or_else(|| {
+        let root_joint = def.root_joint(model, pelvis)?;
+        let root = model.name_to_id(MjtObjBase::mjOBJ_JOINT, root_joint).ok_or_else(|| {
             def.map_error(
-                &map.root_joint,
-                format!("root_joint `{}` is not a joint in {}", map.root_joint, def.mjcf_path.display()),
+                root_joint,
+                format!("root_joint `{root_joint}` is not a joint in {}", def.mjcf_path.display()),
             )
         })?;
         if model.jnt_type()[root] != MjtJoint::mjJNT_FREE {
-            return Err(def.map_error(&map.root_joint, format!("root_joint `{}` is not a free joint", map.root_joint)));
+            return Err(def.map_error(root_joint, format!("root_joint `{root_joint}` is not a free joint")));
         }
         if model.jnt_bodyid()[root] as usize != pelvis {
+            let on = model.id_to_name(MjtObjBase::mjOBJ_BODY, model.jnt_bodyid()[root] as usize).unwrap_or("?");
             return Err(def.map_error(
-                &map.root_joint,
-                format!("root_joint `{}` does not belong to the pelvis `{}`", map.root_joint, map.pelvis),
+                root_joint,
+                format!(
+                    "root_joint `{root_joint}` is on body `{on}`, not on the pelvis `{}`: the free joint must be the \
+                     pelvis's (the sit, the fall test and the clips' root all follow it). Where the body's free root \
+                     is another part (a chest), name that part as the pelvis",
+                    map.pelvis
+                ),
             ));
         }
 
@@ -260,12 +464,16 @@ impl BodyIndex {
             // Policies write joint-angle targets into the controls: a position servo
             // (force = kp·(ctrl − q) − kv·q̇: fixed gain kp, affine bias 0, −kp, −kv) turns them into
             // torques; a motor would take an angle as a torque and the body would collapse.
+            // With a gear g the actuator's length is g·q, and the joint sees g times its force:
+            // the target is a joint angle when the bias's position term is −kp/g.
             let kp = gain[actuator][0];
+            let g = model.actuator_gear()[actuator][0];
             let servo = gain_type[actuator] == MjtGain::mjGAIN_FIXED
                 && bias_type[actuator] == MjtBias::mjBIAS_AFFINE
                 && kp > 0.0
+                && g != 0.0
                 && bias[actuator][0] == 0.0
-                && (bias[actuator][1] + kp).abs() <= 1e-9 * kp.max(1.0);
+                && (bias[actuator][1] + kp / g).abs() <= 1e-9 * kp.max(1.0);
             if !servo {
                 let a = model.id_to_name(MjtObjBase::mjOBJ_ACTUATOR, actuator).unwrap_or("(unnamed)").to_string();
                 not_servos.push(format!("`{a}` ({name})"));
@@ -286,8 +494,8 @@ impl BodyIndex {
             return Err(SceneError::Mjcf {
                 file: def.mjcf_path.clone(),
                 message: format!(
-                    "{n} actuator{} of the actuated joints {} not position servos: {}{}. Policies drive the joints by \
-                     angle targets, which a motor would take as torques. Write each as \
+                    "{n} actuator{} of the actuated joints {} neither position servos nor torque motors: {}{}. \
+                     Policies drive the joints by angle targets. Write each as \
                      `<position joint=\"J\" kp=\"…\" kv=\"…\" ctrlrange=\"lo hi\" forcerange=\"…\"/>` \
                      (scenes/assets/humanoid.xml shows gains for a 70 kg body)",
                     if n == 1 { "" } else { "s" },

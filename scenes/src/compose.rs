@@ -67,10 +67,14 @@ pub fn scene_mjcf(body: &BodyDef, scenario: &Scenario) -> Result<String> {
     <light name="repertoire_sun" directional="true" pos="0 0 6" dir="0.2 0.3 -1" diffuse="0.8 0.8 0.8"/>
 "#,
     );
-    let _ = writeln!(
-        out,
-        r#"    <geom name="floor" type="plane" size="0 0 0.05" material="repertoire_grid" rgba="1 1 1 1" {CONTACT}/>"#
-    );
+    // A body file that brings its own ground plane (gymnasium's humanoid does) stands on it; a
+    // second plane under it would double every foot contact.
+    if ground_plane(&crate::body::compile(&body.mjcf, &body.mjcf_path)?).is_none() {
+        let _ = writeln!(
+            out,
+            r#"    <geom name="floor" type="plane" size="0 0 0.05" material="repertoire_grid" rgba="1 1 1 1" {CONTACT}/>"#
+        );
+    }
     for prop in &scenario.props {
         prop_mjcf(&mut out, prop);
     }
@@ -111,6 +115,13 @@ fn check_names(body: &BodyDef, added: &str) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// The first plane geom on the world body of `model`: the ground.
+pub fn ground_plane(model: &mujoco_rs::prelude::MjModel) -> Option<usize> {
+    use mujoco_rs::wrappers::mj_model::MjtGeomBase;
+    (0..model.geom_type().len())
+        .find(|&g| model.geom_bodyid()[g] == 0 && model.geom_type()[g] == MjtGeomBase::mjGEOM_PLANE)
 }
 
 /// Every `<kind … name="…"` in `text`: (kind, name, 1-based line).

@@ -16,23 +16,20 @@ use std::path::{Path, PathBuf};
 /// to count as seated: the sit task's default `facing_deg`, and `skill eval`'s test for a sit.
 pub const SEATED_FACING_DEG: f64 = 60.0;
 
-/// The skills the project knows how to train; a scenario may list only these.
-pub const KNOWN_SKILLS: &[&str] = &[
-    "walk",
-    "walk_to",
-    "walk_around",
-    "turn_left",
-    "turn_right",
-    "turn_left_wide",
-    "turn_right_wide",
-    "sit",
-    "sit_from_wide",
-    "stand",
-    "lift",
-    "carry",
-    "put_down",
-    "catch",
-];
+/// Why `name` cannot name a skill, or `None` when it can. A skill's name is its folder in a
+/// library and its name in specs, graphs and reports: a lowercase letter, then lowercase
+/// letters, digits and `_`. Which skills exist is the library's to say, when it loads them.
+pub fn skill_name_problem(name: &str) -> Option<String> {
+    let mut chars = name.chars();
+    let ok = chars.next().is_some_and(|c| c.is_ascii_lowercase())
+        && chars.all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '_');
+    (!ok).then(|| {
+        format!(
+            "skill name `{name}`: a skill is named by a lowercase letter, then lowercase letters, digits and `_` \
+             (it is a library folder)"
+        )
+    })
+}
 
 /// A whole scenario as written in its RON file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -1078,11 +1075,8 @@ impl ScenarioFile {
 
         let mut skills = HashSet::new();
         for skill in &s.skills {
-            if !KNOWN_SKILLS.contains(&skill.as_str()) {
-                return Err(self.invalid(
-                    Some(skill),
-                    format!("unknown skill `{skill}`; known skills: {}", KNOWN_SKILLS.join(", ")),
-                ));
+            if let Some(problem) = skill_name_problem(skill) {
+                return Err(self.invalid(Some(skill), problem));
             }
             if !skills.insert(skill.as_str()) {
                 return Err(self.invalid(Some(skill), format!("skill `{skill}` is listed twice")));
@@ -1356,5 +1350,21 @@ impl ScenarioFile {
     /// The prop called `name`, if any.
     pub fn prop(&self, name: &str) -> Option<&Prop> {
         self.scenario.props.iter().find(|p| p.name() == name)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::skill_name_problem;
+
+    #[test]
+    fn a_skill_is_named_like_a_folder() {
+        for good in ["walk", "turn_left_wide", "sit2", "moonwalk"] {
+            assert_eq!(skill_name_problem(good), None, "{good}");
+        }
+        for bad in ["", "Walk", "2sit", "walk-to", "walk to", "../sit", "_walk"] {
+            let problem = skill_name_problem(bad).unwrap_or_else(|| panic!("`{bad}` was accepted"));
+            assert!(problem.contains(&format!("`{bad}`")), "{problem}");
+        }
     }
 }

@@ -92,8 +92,15 @@ pub struct WorldModel {
     pub mjcf: String,
     /// Props in scenario order, resolved.
     pub props: Vec<PropIndex>,
-    /// The floor geom.
+    /// The floor geom: the scene's, or the body file's own ground plane when it brings one.
     pub floor_geom: usize,
+    /// Whether the floor is the body file's own ground plane.
+    pub own_floor: bool,
+    /// The body's torque motors driven as PD servos ([`crate::body::MotorPd`]).
+    pub pd_motors: Vec<crate::body::PdMotor>,
+    /// How far the default pose was lowered onto the floor (m; negative: raised), by the body
+    /// map's `stand_on_floor`.
+    pub lowered_by: f64,
     model: Arc<MjModel>,
     geom_body: Vec<usize>,
     geom_prop: Vec<Option<usize>>,
@@ -150,11 +157,16 @@ impl WorldModel {
         };
         body.check()?;
         let mjcf = scene_mjcf(&body, &scenario.scenario)?;
-        let model = compile(&mjcf, &scenario.path)?;
+        let mut model = compile(&mjcf, &scenario.path)?;
+        let pd_motors = crate::body::drive_motors_as_pd(&mut model, &body)?;
         let index = BodyIndex::resolve(&model, &body)?;
-        let floor_geom = model
-            .name_to_id(MjtObjBase::mjOBJ_GEOM, "floor")
+        // The first plane on the world body: the body file's own ground when it has one (the
+        // scene then adds none, see compose::scene_mjcf), else the scene's floor.
+        let floor_geom = crate::compose::ground_plane(&model)
             .ok_or_else(|| SceneError::Usage("the scene has no floor geom".into()))?;
+        let own_floor = model.geom_matid()[floor_geom] < 0
+            || model.name_to_id(MjtObjBase::mjOBJ_MATERIAL, "repertoire_grid")
+                != Some(model.geom_matid()[floor_geom] as usize);
 
         let geom_body: Vec<usize> = model.geom_bodyid().iter().map(|&b| b as usize).collect();
         let mut geom_prop = vec![None; geom_body.len()];
@@ -209,9 +221,19 @@ impl WorldModel {
                 Prop::Box(_) | Prop::Ball(_) => PropUse::Handled,
             })
             .collect();
+        // A body map may ask for the default pose to be moved onto the floor (a third-party file
+        // whose root stands at another height, used without an edit).
+        let mut model = Arc::new(model);
+        let mut clearance = sole_clearance(&model, &index, &parent);
+        let mut lowered_by = 0.0;
+        if body.map.stand_on_floor && clearance.abs() > 1e-4 {
+            let mut moved = Arc::try_unwrap(model).unwrap_or_else(|_| unreachable!("only sole_clearance held it"));
+            moved.qpos0_mut()[index.root_qpos + 2] -= clearance;
+            lowered_by = clearance;
+            model = Arc::new(moved);
+            clearance = sole_clearance(&model, &index, &parent);
+        }
         let pelvis_min = scenario.scenario.fall.pelvis_below * model.qpos0()[index.root_qpos + 2];
-        let model = Arc::new(model);
-        let clearance = sole_clearance(&model, &index, &parent);
         if clearance.abs() > SOLE_TOLERANCE_M {
             let (what, how) = if clearance > 0.0 { ("above", "lower") } else { ("below", "raise") };
             return Err(SceneError::Invalid {
@@ -220,7 +242,8 @@ impl WorldModel {
                 message: format!(
                     "in its default pose (every joint at 0) the lowest point of the feet is {:.1} cm {what} the floor: the \
                      character would {} at every start, and clips retargeted onto it would be judged against the wrong floor; \
-                     {how} the root body's `pos` by {:.3} m in this file (at most {:.0} cm off is taken as standing)",
+                     {how} the root body's `pos` by {:.3} m in this file, or set `stand_on_floor: true` in its body map to \
+                     have the default pose moved there (at most {:.0} cm off is taken as standing)",
                     100.0 * clearance.abs(),
                     if clearance > 0.0 { "drop" } else { "start inside the floor" },
                     clearance.abs(),
@@ -235,6 +258,9 @@ impl WorldModel {
             mjcf,
             props,
             floor_geom,
+            own_floor,
+            pd_motors,
+            lowered_by,
             model,
             geom_body,
             geom_prop,

@@ -31,95 +31,13 @@ pub enum LatentCommand {
     /// Run library skills with action noise from random clip frames and store their
     /// transitions (proprioception, the next k reference frames, mean and noisy actions,
     /// imitation reward) as a dataset: dataset.safetensors + dataset.ron.
-    Collect {
-        /// Skills to run (their specs in --specs, their policies in --library).
-        #[arg(long, value_delimiter = ',', default_values_t = DEFAULT_SKILLS.map(String::from))]
-        skills: Vec<String>,
-        /// Folder of the skill specs.
-        #[arg(long, default_value = DEFAULT_SPECS)]
-        specs: PathBuf,
-        /// Skill library folder.
-        #[arg(long, default_value = DEFAULT_LIBRARY)]
-        library: PathBuf,
-        /// Transitions per skill.
-        #[arg(long, default_value_t = 25_000)]
-        steps: u64,
-        /// Reference frames ahead in the encoder's input.
-        #[arg(long, default_value_t = 5)]
-        k: usize,
-        /// Standard deviation of the action noise.
-        #[arg(long, default_value_t = 0.1)]
-        noise: f32,
-        /// Environments stepped together.
-        #[arg(long, default_value_t = 16)]
-        batch: usize,
-        /// Seed.
-        #[arg(long, default_value_t = 1)]
-        seed: u64,
-        /// Output folder (default: runs/latent-data-<time>-s<seed>).
-        #[arg(long)]
-        out: Option<PathBuf>,
-    },
+    Collect(CollectArgs),
     /// Train the encoder and decoder on a dataset into a model folder (latent.ron +
     /// latent.safetensors, metrics.csv).
-    Train {
-        /// The dataset folder (from `latent collect`).
-        data: PathBuf,
-        /// A LatentConfig in RON (defaults: 60-D latent, α 0.95, β 0.01, 2×256 MLPs).
-        #[arg(long)]
-        config: Option<PathBuf>,
-        /// Override the latent width.
-        #[arg(long)]
-        latent_dim: Option<usize>,
-        /// Override the KL weight β.
-        #[arg(long)]
-        beta: Option<f32>,
-        /// Loss weighting.
-        #[arg(long, value_enum)]
-        weighting: Option<WeightingArg>,
-        /// RWR temperature (on the imitation return-to-go).
-        #[arg(long, default_value_t = 1.0)]
-        rwr_temperature: f32,
-        /// Most Adam updates.
-        #[arg(long, default_value_t = 1_000_000)]
-        updates: usize,
-        /// Most minutes of training.
-        #[arg(long, default_value_t = 20.0)]
-        minutes: f64,
-        /// Seed (default: the config's).
-        #[arg(long)]
-        seed: Option<u64>,
-        /// Output folder (default: runs/latent-<time>-s<seed>).
-        #[arg(long)]
-        out: Option<PathBuf>,
-    },
+    Train(TrainArgs),
     /// One-shot imitation: track each skill's clip from random frames with the expert and with
     /// the latent model; normalised episode length and return side by side (one_shot.md/.csv).
-    Eval {
-        /// The model folder (from `latent train`).
-        model: PathBuf,
-        /// Skills whose clips are tracked.
-        #[arg(long, value_delimiter = ',', default_values_t = DEFAULT_SKILLS.map(String::from))]
-        skills: Vec<String>,
-        /// Folder of the skill specs.
-        #[arg(long, default_value = DEFAULT_SPECS)]
-        specs: PathBuf,
-        /// Skill library folder.
-        #[arg(long, default_value = DEFAULT_LIBRARY)]
-        library: PathBuf,
-        /// Episodes per skill and controller.
-        #[arg(long, default_value_t = 100)]
-        episodes: usize,
-        /// Environments stepped together.
-        #[arg(long, default_value_t = 16)]
-        batch: usize,
-        /// Seed of the start states (the same for both controllers).
-        #[arg(long, default_value_t = 12345)]
-        seed: u64,
-        /// Output folder (default: MODEL/eval).
-        #[arg(long)]
-        out: Option<PathBuf>,
-    },
+    Eval(EvalArgs),
     /// Train a high-level policy whose action is the latent z (bounded to ±2) on a go-to-target
     /// task through the frozen decoder (PPO), and evaluate it beside a constant z = 0.
     Goto {
@@ -159,6 +77,100 @@ pub enum LatentCommand {
     },
 }
 
+/// The expert skills `latent collect` runs and `latent eval` tracks the clips of.
+#[derive(Debug, clap::Args)]
+pub struct Experts {
+    /// Skills (their specs in --specs, their policies in --library).
+    #[arg(long, value_delimiter = ',', default_values_t = DEFAULT_SKILLS.map(String::from))]
+    pub skills: Vec<String>,
+    /// Folder of the skill specs.
+    #[arg(long, default_value = DEFAULT_SPECS)]
+    pub specs: PathBuf,
+    /// Skill library folder.
+    #[arg(long, default_value = DEFAULT_LIBRARY)]
+    pub library: PathBuf,
+}
+
+/// `latent collect`'s arguments.
+#[derive(Debug, clap::Args)]
+pub struct CollectArgs {
+    #[command(flatten)]
+    pub experts: Experts,
+    /// Transitions per skill.
+    #[arg(long, default_value_t = 25_000)]
+    pub steps: u64,
+    /// Reference frames ahead in the encoder's input.
+    #[arg(long, default_value_t = 5)]
+    pub k: usize,
+    /// Standard deviation of the action noise.
+    #[arg(long, default_value_t = 0.1)]
+    pub noise: f32,
+    /// Environments stepped together.
+    #[arg(long, default_value_t = 16)]
+    pub batch: usize,
+    /// Seed.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Output folder (default: runs/latent-data-<time>-s<seed>).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+/// `latent train`'s arguments.
+#[derive(Debug, clap::Args)]
+pub struct TrainArgs {
+    /// The dataset folder (from `latent collect`).
+    pub data: PathBuf,
+    /// A LatentConfig in RON (defaults: 60-D latent, α 0.95, β 0.01, 2×256 MLPs).
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Override the latent width.
+    #[arg(long)]
+    pub latent_dim: Option<usize>,
+    /// Override the KL weight β.
+    #[arg(long)]
+    pub beta: Option<f32>,
+    /// Loss weighting.
+    #[arg(long, value_enum)]
+    pub weighting: Option<WeightingArg>,
+    /// RWR temperature (on the imitation return-to-go).
+    #[arg(long, default_value_t = 1.0)]
+    pub rwr_temperature: f32,
+    /// Most Adam updates.
+    #[arg(long, default_value_t = 1_000_000)]
+    pub updates: usize,
+    /// Most minutes of training.
+    #[arg(long, default_value_t = 20.0)]
+    pub minutes: f64,
+    /// Seed (default: the config's).
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Output folder (default: runs/latent-<time>-s<seed>).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+/// `latent eval`'s arguments.
+#[derive(Debug, clap::Args)]
+pub struct EvalArgs {
+    /// The model folder (from `latent train`).
+    pub model: PathBuf,
+    #[command(flatten)]
+    pub experts: Experts,
+    /// Episodes per skill and controller.
+    #[arg(long, default_value_t = 100)]
+    pub episodes: usize,
+    /// Environments stepped together.
+    #[arg(long, default_value_t = 16)]
+    pub batch: usize,
+    /// Seed of the start states (the same for both controllers).
+    #[arg(long, default_value_t = 12345)]
+    pub seed: u64,
+    /// Output folder (default: MODEL/eval).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
 fn spec_paths(specs: &Path, skills: &[String]) -> Result<Vec<PathBuf>> {
     if skills.is_empty() {
         bail!("no skill named");
@@ -175,132 +187,9 @@ fn spec_paths(specs: &Path, skills: &[String]) -> Result<Vec<PathBuf>> {
 pub fn run(cmd: LatentCommand) -> Result<()> {
     let command = super::invocation();
     match cmd {
-        LatentCommand::Collect { skills, specs, library, steps, k, noise, batch, seed, out } => {
-            let out = out.unwrap_or_else(|| default_run_dir(Path::new("runs"), "latent-data", seed));
-            let opts = CollectOptions {
-                library,
-                specs: spec_paths(&specs, &skills)?,
-                steps_per_skill: steps,
-                k,
-                noise_std: noise,
-                batch,
-                seed,
-                progress: true,
-                command,
-            };
-            let begin = std::time::Instant::now();
-            let mut data = collect(&opts).context("collecting expert rollouts")?;
-            let bytes = data.save(&out)?;
-            let m = &data.manifest;
-            println!("| skill | transitions | episodes | falls |");
-            println!("|---|---:|---:|---:|");
-            for s in &m.skills {
-                println!("| {} | {} | {} | {} |", s.name, s.steps, s.episodes, s.falls);
-            }
-            println!(
-                "{} transitions in {:.1} s; {} written ({:.1} MB, {:.1} MB per 10^5 steps; {} values per step)",
-                m.steps,
-                begin.elapsed().as_secs_f64(),
-                out.display(),
-                bytes as f64 / 1e6,
-                bytes as f64 / 1e6 * 1e5 / m.steps.max(1) as f64,
-                m.proprio.size + m.reference_size + 2 * m.act_dim + 1
-            );
-            Ok(())
-        }
-        LatentCommand::Train {
-            data,
-            config,
-            latent_dim,
-            beta,
-            weighting,
-            rwr_temperature,
-            updates,
-            minutes,
-            seed,
-            out,
-        } => {
-            let mut cfg = match &config {
-                Some(p) => {
-                    let text = std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?;
-                    ron::from_str::<LatentConfig>(&text).map_err(|e| {
-                        anyhow::anyhow!("{}:{}:{}: {}", p.display(), e.span.start.line, e.span.start.col, e.code)
-                    })?
-                }
-                None => LatentConfig::default(),
-            };
-            if let Some(z) = latent_dim {
-                cfg.latent_dim = z;
-            }
-            if let Some(b) = beta {
-                cfg.beta = b;
-            }
-            if let Some(s) = seed {
-                cfg.seed = s;
-            }
-            match weighting {
-                Some(WeightingArg::Bc) => cfg.weighting = Weighting::Bc,
-                Some(WeightingArg::Clip) => cfg.weighting = Weighting::ClipBalanced,
-                Some(WeightingArg::Rwr) => {
-                    cfg.weighting = Weighting::Rwr { temperature: rwr_temperature, gamma: 0.95, max_weight: 20.0 }
-                }
-                None => {}
-            }
-            let dataset = Dataset::load(&data)?;
-            let out = out.unwrap_or_else(|| default_run_dir(Path::new("runs"), "latent", cfg.seed));
-            std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
-            tracing::info!(transitions = dataset.len(), out = %out.display(), "training the latent model");
-            let opts = TrainOptions {
-                max_updates: updates,
-                max_seconds: minutes * 60.0,
-                log_every: 50,
-                progress: true,
-                metrics_csv: Some(out.join("metrics.csv")),
-                command,
-            };
-            let (mut policy, _) = train(&dataset, &data, cfg, &opts)?;
-            let path = policy.save(&out)?;
-            let t = &policy.manifest.training;
-            println!("| updates | rows | minutes | loss | −log π | KL | action MSE |");
-            println!("|---:|---:|---:|---:|---:|---:|---:|");
-            println!(
-                "| {} | {} | {:.1} | {:.2} → {:.2} | {:.2} → {:.2} | {:.2} → {:.2} | {:.4} → {:.4} |",
-                t.updates,
-                t.rows,
-                t.seconds / 60.0,
-                t.first.loss,
-                t.last.loss,
-                t.first.nll,
-                t.last.nll,
-                t.first.kl,
-                t.last.kl,
-                t.first.action_mse,
-                t.last.action_mse
-            );
-            println!("model written to {}", path.display());
-            Ok(())
-        }
-        LatentCommand::Eval { model, skills, specs, library, episodes, batch, seed, out } => {
-            let mut policy = LatentPolicy::load(&model)?;
-            let rows = one_shot(&mut policy, &model, &library, &spec_paths(&specs, &skills)?, episodes, batch, seed)?;
-            let dir =
-                if model.is_dir() { model.clone() } else { model.parent().unwrap_or(Path::new(".")).to_path_buf() };
-            let out = out.unwrap_or_else(|| dir.join("eval"));
-            std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
-            let md = markdown(&rows);
-            let page = format!(
-                "One-shot imitation through {} ({} episodes per clip from random reference frames, start seed \
-                 {seed}, the same starts for the expert and the latent model; lengths and returns normalised as \
-                 in MoCapAct Table 2). Command: `{command}`\n\n{md}",
-                model.display(),
-                episodes
-            );
-            repertoire_latent::error::write_atomic(&out.join("one_shot.md"), page.as_bytes())?;
-            repertoire_latent::error::write_atomic(&out.join("one_shot.csv"), csv(&rows).as_bytes())?;
-            print!("{md}");
-            println!("written to {}", out.join("one_shot.md").display());
-            Ok(())
-        }
+        LatentCommand::Collect(args) => collect_cmd(args, command),
+        LatentCommand::Train(args) => train_cmd(args, command),
+        LatentCommand::Eval(args) => eval_cmd(args, command),
         LatentCommand::Goto {
             model,
             start,
@@ -315,6 +204,135 @@ pub fn run(cmd: LatentCommand) -> Result<()> {
             run_dir,
         } => goto_cmd(&model, &start, &library, iterations, envs, steps, seed, trials, init_log_std, out, run_dir),
     }
+}
+
+/// `latent collect`.
+fn collect_cmd(
+    CollectArgs { experts: Experts { skills, specs, library }, steps, k, noise, batch, seed, out }: CollectArgs,
+    command: String,
+) -> Result<()> {
+    let out = out.unwrap_or_else(|| default_run_dir(Path::new("runs"), "latent-data", seed));
+    let opts = CollectOptions {
+        library,
+        specs: spec_paths(&specs, &skills)?,
+        steps_per_skill: steps,
+        k,
+        noise_std: noise,
+        batch,
+        seed,
+        progress: true,
+        command,
+    };
+    let begin = std::time::Instant::now();
+    let mut data = collect(&opts).context("collecting expert rollouts")?;
+    let bytes = data.save(&out)?;
+    let m = &data.manifest;
+    println!("| skill | transitions | episodes | falls |");
+    println!("|---|---:|---:|---:|");
+    for s in &m.skills {
+        println!("| {} | {} | {} | {} |", s.name, s.steps, s.episodes, s.falls);
+    }
+    println!(
+        "{} transitions in {:.1} s; {} written ({:.1} MB, {:.1} MB per 10^5 steps; {} values per step)",
+        m.steps,
+        begin.elapsed().as_secs_f64(),
+        out.display(),
+        bytes as f64 / 1e6,
+        bytes as f64 / 1e6 * 1e5 / m.steps.max(1) as f64,
+        m.proprio.size + m.reference_size + 2 * m.act_dim + 1
+    );
+    Ok(())
+}
+
+/// `latent train`.
+fn train_cmd(
+    TrainArgs { data, config, latent_dim, beta, weighting, rwr_temperature, updates, minutes, seed, out }: TrainArgs,
+    command: String,
+) -> Result<()> {
+    let mut cfg = match &config {
+        Some(p) => {
+            let text = std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?;
+            ron::from_str::<LatentConfig>(&text).map_err(|e| {
+                anyhow::anyhow!("{}:{}:{}: {}", p.display(), e.span.start.line, e.span.start.col, e.code)
+            })?
+        }
+        None => LatentConfig::default(),
+    };
+    if let Some(z) = latent_dim {
+        cfg.latent_dim = z;
+    }
+    if let Some(b) = beta {
+        cfg.beta = b;
+    }
+    if let Some(s) = seed {
+        cfg.seed = s;
+    }
+    match weighting {
+        Some(WeightingArg::Bc) => cfg.weighting = Weighting::Bc,
+        Some(WeightingArg::Clip) => cfg.weighting = Weighting::ClipBalanced,
+        Some(WeightingArg::Rwr) => {
+            cfg.weighting = Weighting::Rwr { temperature: rwr_temperature, gamma: 0.95, max_weight: 20.0 }
+        }
+        None => {}
+    }
+    let dataset = Dataset::load(&data)?;
+    let out = out.unwrap_or_else(|| default_run_dir(Path::new("runs"), "latent", cfg.seed));
+    std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+    tracing::info!(transitions = dataset.len(), out = %out.display(), "training the latent model");
+    let opts = TrainOptions {
+        max_updates: updates,
+        max_seconds: minutes * 60.0,
+        log_every: 50,
+        progress: true,
+        metrics_csv: Some(out.join("metrics.csv")),
+        command,
+    };
+    let (mut policy, _) = train(&dataset, &data, cfg, &opts)?;
+    let path = policy.save(&out)?;
+    let t = &policy.manifest.training;
+    println!("| updates | rows | minutes | loss | −log π | KL | action MSE |");
+    println!("|---:|---:|---:|---:|---:|---:|---:|");
+    println!(
+        "| {} | {} | {:.1} | {:.2} → {:.2} | {:.2} → {:.2} | {:.2} → {:.2} | {:.4} → {:.4} |",
+        t.updates,
+        t.rows,
+        t.seconds / 60.0,
+        t.first.loss,
+        t.last.loss,
+        t.first.nll,
+        t.last.nll,
+        t.first.kl,
+        t.last.kl,
+        t.first.action_mse,
+        t.last.action_mse
+    );
+    println!("model written to {}", path.display());
+    Ok(())
+}
+
+/// `latent eval`.
+fn eval_cmd(
+    EvalArgs { model, experts: Experts { skills, specs, library }, episodes, batch, seed, out }: EvalArgs,
+    command: String,
+) -> Result<()> {
+    let mut policy = LatentPolicy::load(&model)?;
+    let rows = one_shot(&mut policy, &model, &library, &spec_paths(&specs, &skills)?, episodes, batch, seed)?;
+    let dir = if model.is_dir() { model.clone() } else { model.parent().unwrap_or(Path::new(".")).to_path_buf() };
+    let out = out.unwrap_or_else(|| dir.join("eval"));
+    std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+    let md = markdown(&rows);
+    let page = format!(
+        "One-shot imitation through {} ({} episodes per clip from random reference frames, start seed \
+         {seed}, the same starts for the expert and the latent model; lengths and returns normalised as \
+         in MoCapAct Table 2). Command: `{command}`\n\n{md}",
+        model.display(),
+        episodes
+    );
+    repertoire_latent::error::write_atomic(&out.join("one_shot.md"), page.as_bytes())?;
+    repertoire_latent::error::write_atomic(&out.join("one_shot.csv"), csv(&rows).as_bytes())?;
+    print!("{md}");
+    println!("written to {}", out.join("one_shot.md").display());
+    Ok(())
 }
 
 #[allow(clippy::too_many_arguments)]

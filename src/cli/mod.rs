@@ -3,6 +3,7 @@
 mod ablate;
 mod bench;
 mod clip;
+mod controller;
 mod latent;
 mod meta;
 mod recipe;

@@ -19,7 +19,35 @@ pub struct ReplayArgs {
     /// The folder holding node_modules/three (default: scenes/web, installed by scripts/setup.sh).
     #[arg(long)]
     pub web: Option<PathBuf>,
+    /// Also render a contact sheet of the recording into this PNG: --frames evenly spaced
+    /// frames from --view, captioned with time and skill (headless Chromium on the replay page).
+    #[arg(long)]
+    pub filmstrip: Option<PathBuf>,
+    /// Frames in the filmstrip.
+    #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u32).range(1..=64), requires = "filmstrip")]
+    pub frames: u32,
+    /// Where the filmstrip looks from, around the pelvis of each frame: the character's right
+    /// side, its front or from above (set from its heading at the first frame).
+    #[arg(long, value_enum, default_value_t = View::Side, requires = "filmstrip")]
+    pub view: View,
+    /// Frames per row of the filmstrip.
+    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..), requires = "filmstrip")]
+    pub columns: u32,
 }
+
+/// A filmstrip's camera.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum View {
+    /// The character's right side.
+    Side,
+    /// Its front.
+    Front,
+    /// From above.
+    Top,
+}
+
+/// Width and height of one filmstrip frame (pixels).
+const TILE: (u32, u32) = (480, 360);
 
 #[derive(Debug, Args)]
 pub struct ExportArgs {
@@ -108,9 +136,43 @@ pub fn replay(args: ReplayArgs) -> Result<()> {
         }
         return Ok(());
     }
-    let out = args.out.unwrap_or_else(|| args.input.with_extension("html"));
+    let out = args.out.clone().unwrap_or_else(|| args.input.with_extension("html"));
     let size = replay_file(&args.input, &out, &web)?;
     println!("replay page written to {} ({:.1} MB); open it in a browser", out.display(), size as f64 / 1e6);
+    if let Some(png) = &args.filmstrip {
+        filmstrip(&out, png, &web, &args)?;
+        println!("filmstrip of {} frames ({:?} view) written to {}", args.frames, args.view, png.display());
+    }
+    Ok(())
+}
+
+/// Renders the contact sheet of the replay page `page` into `png` through
+/// `<web>/filmstrip.mjs` (node, playwright-core and Chromium, as the browser test uses).
+fn filmstrip(page: &Path, png: &Path, web: &Path, args: &ReplayArgs) -> Result<()> {
+    let script = web.join("filmstrip.mjs");
+    if !script.exists() {
+        bail!("{} is missing: the filmstrip is drawn by it (scenes/web/filmstrip.mjs)", script.display());
+    }
+    if let Some(dir) = png.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;
+    }
+    let view = format!("{:?}", args.view).to_lowercase();
+    let numbers = |ns: &[u32]| ns.iter().map(u32::to_string).collect::<Vec<_>>();
+    let out = std::process::Command::new("node")
+        .arg(&script)
+        .args([page, png])
+        .args(numbers(&[args.frames]))
+        .arg(&view)
+        .args(numbers(&[args.columns, TILE.0, TILE.1]))
+        .output();
+    let out = out.with_context(|| "running node (Node 18 or newer; scripts/setup.sh installs the rest)")?;
+    if !out.status.success() {
+        bail!(
+            "the filmstrip of {} could not be drawn: {}",
+            page.display(),
+            String::from_utf8_lossy(&out.stderr).trim()
+        );
+    }
     Ok(())
 }
 

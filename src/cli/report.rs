@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use repertoire_meta::eval::MetaReport;
-use repertoire_meta::task_eval::{TossReport, WarehouseReport};
+use repertoire_meta::tasks::task_eval::{TossReport, WarehouseReport};
 use repertoire_report::{CurriculumPoint, curriculum_schedule, learning_curves, read_table, write_atomic};
 
 /// One section of the page: a heading, Markdown text (tables included) and charts.
@@ -30,8 +30,33 @@ pub fn run(dir: &Path) -> Result<PathBuf> {
     }
     let out = dir.join("report");
     std::fs::create_dir_all(&out).with_context(|| format!("{}: cannot create", out.display()))?;
-    let mut sections = Vec::new();
+    let sections: Vec<Section> = [
+        training_section(dir, &out)?,
+        curriculum_section(dir, &out)?,
+        evaluation_section(dir, &out)?,
+        replays_section(dir)?,
+        ablation_section(dir, &out)?,
+    ]
+    .into_iter()
+    .flatten()
+    .collect();
 
+    if sections.is_empty() {
+        bail!(
+            "{}: nothing to report (looked for metrics.csv, curriculum.csv, report.json, eval/report.json, table.md)",
+            dir.display()
+        );
+    }
+    let title = format!("Report: {}", dir.display());
+    let md = markdown(&title, &sections, &out);
+    let html = html(&title, &sections)?;
+    write_atomic(&out.join("index.md"), md.as_bytes())?;
+    write_atomic(&out.join("index.html"), html.as_bytes())?;
+    Ok(out.join("index.html"))
+}
+
+/// Training: the run's learning curves and last figures (metrics.csv).
+fn training_section(dir: &Path, out: &Path) -> Result<Option<Section>> {
     let metrics = dir.join("metrics.csv");
     if metrics.exists() {
         let files = learning_curves(&metrics, &out.join("curves"))?;
@@ -48,9 +73,13 @@ pub fn run(dir: &Path) -> Result<PathBuf> {
             last("mean_return").unwrap_or(f64::NAN),
             100.0 * last("termination_rate").unwrap_or(f64::NAN)
         );
-        sections.push(Section { title: "Training".into(), text, charts: pairs(files) });
+        return Ok(Some(Section { title: "Training".into(), text, charts: pairs(files) }));
     }
+    Ok(None)
+}
 
+/// The zone curriculum's schedule (curriculum.csv).
+fn curriculum_section(dir: &Path, out: &Path) -> Result<Option<Section>> {
     let schedule = dir.join("curriculum.csv");
     if schedule.exists() {
         let t = read_table(&schedule)?;
@@ -92,9 +121,13 @@ pub fn run(dir: &Path) -> Result<PathBuf> {
                 100.0 * threshold
             );
         }
-        sections.push(Section { title: "Zone curriculum".into(), text, charts: vec![chart] });
+        return Ok(Some(Section { title: "Zone curriculum".into(), text, charts: vec![chart] }));
     }
+    Ok(None)
+}
 
+/// An evaluation's tables and pictures (report.json of sitting, the warehouse or the toss).
+fn evaluation_section(dir: &Path, out: &Path) -> Result<Option<Section>> {
     let report = [dir.join("report.json"), dir.join("eval").join("report.json")].into_iter().find(|p| p.exists());
     if let Some(path) = report {
         let text = std::fs::read_to_string(&path).with_context(|| format!("{}: cannot read", path.display()))?;
@@ -106,16 +139,16 @@ pub fn run(dir: &Path) -> Result<PathBuf> {
                 for (side, _) in &r.transitions {
                     charts.push(pair(&out.join(format!("transitions-{side}"))));
                 }
-                sections.push(Section { title: "Evaluation".into(), text: r.markdown(), charts });
+                return Ok(Some(Section { title: "Evaluation".into(), text: r.markdown(), charts }));
             }
             Err(sit) => {
                 // A warehouse or toss evaluation; otherwise the sitting report's complaint.
                 if let Ok(r) = serde_json::from_str::<WarehouseReport>(&text) {
                     let charts = r.plot(&out)?.iter().map(|s| pair(s)).collect();
-                    sections.push(Section { title: "Warehouse evaluation".into(), text: r.markdown(), charts });
+                    return Ok(Some(Section { title: "Warehouse evaluation".into(), text: r.markdown(), charts }));
                 } else if let Ok(r) = serde_json::from_str::<TossReport>(&text) {
                     let charts = vec![pair(&r.plot(&out)?)];
-                    sections.push(Section { title: "Toss evaluation".into(), text: r.markdown(), charts });
+                    return Ok(Some(Section { title: "Toss evaluation".into(), text: r.markdown(), charts }));
                 } else {
                     return Err(
                         anyhow::Error::new(sit).context(format!("{}: not an evaluation report", path.display()))
@@ -124,7 +157,11 @@ pub fn run(dir: &Path) -> Result<PathBuf> {
             }
         }
     }
+    Ok(None)
+}
 
+/// Links to the worst episodes' recordings and replay pages (worst/).
+fn replays_section(dir: &Path) -> Result<Option<Section>> {
     let worst = dir.join("worst");
     if worst.is_dir() {
         let mut recs: Vec<PathBuf> = std::fs::read_dir(&worst)
@@ -149,10 +186,14 @@ pub fn run(dir: &Path) -> Result<PathBuf> {
                 }
             }
             let _ = writeln!(text, "\nMake or refresh the pages with `repertoire replay {}`.", dir.display());
-            sections.push(Section { title: "Replays".into(), text, charts: Vec::new() });
+            return Ok(Some(Section { title: "Replays".into(), text, charts: Vec::new() }));
         }
     }
+    Ok(None)
+}
 
+/// An ablation's table and chart (table.md).
+fn ablation_section(dir: &Path, out: &Path) -> Result<Option<Section>> {
     let table = dir.join("table.md");
     if table.exists() {
         let text = std::fs::read_to_string(&table).with_context(|| format!("{}: cannot read", table.display()))?;
@@ -167,21 +208,9 @@ pub fn run(dir: &Path) -> Result<PathBuf> {
             }
             charts.push(pair);
         }
-        sections.push(Section { title: "Ablation".into(), text, charts });
+        return Ok(Some(Section { title: "Ablation".into(), text, charts }));
     }
-
-    if sections.is_empty() {
-        bail!(
-            "{}: nothing to report (looked for metrics.csv, curriculum.csv, report.json, eval/report.json, table.md)",
-            dir.display()
-        );
-    }
-    let title = format!("Report: {}", dir.display());
-    let md = markdown(&title, &sections, &out);
-    let html = html(&title, &sections)?;
-    write_atomic(&out.join("index.md"), md.as_bytes())?;
-    write_atomic(&out.join("index.html"), html.as_bytes())?;
-    Ok(out.join("index.html"))
+    Ok(None)
 }
 
 /// Chart files as (png, svg) pairs.

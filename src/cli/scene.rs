@@ -2,6 +2,7 @@
 
 use anyhow::Result;
 use clap::Subcommand;
+use mujoco_rs::prelude::MjtObjBase;
 use repertoire_scenes::scenario::{Facing, Prop, PropBinding, SitApproach, SitFall, Task};
 use repertoire_scenes::{Param, WorldModel};
 use std::path::PathBuf;
@@ -57,7 +58,31 @@ fn check(file: Option<PathBuf>) -> Result<()> {
         1000.0 * model.sole_clearance().abs(),
         if model.sole_clearance() >= 0.0 { "above" } else { "below" }
     );
+    if model.lowered_by != 0.0 {
+        println!(
+            "          default pose moved {:.1} cm {} onto the floor (the body map's stand_on_floor)",
+            100.0 * model.lowered_by.abs(),
+            if model.lowered_by > 0.0 { "down" } else { "up" }
+        );
+    }
     println!("          joints: {}", model.index.joints.iter().map(|j| j.name.as_str()).collect::<Vec<_>>().join(" "));
+    if !model.pd_motors.is_empty() {
+        let each: Vec<String> = model
+            .pd_motors
+            .iter()
+            .map(|m| {
+                let peak = m.max_torque.map_or("unlimited".into(), |t| format!("{t:.0}"));
+                format!("{} {:.0}/{:.0}/{peak}", m.joint, m.kp, m.kv)
+            })
+            .collect();
+        println!(
+            "          {} torque motors driven as PD servos (kp N·m/rad / kv N·m·s/rad / peak N·m): {}",
+            model.pd_motors.len(),
+            each.join(", ")
+        );
+    }
+    let floor = model.mj_model().id_to_name(MjtObjBase::mjOBJ_GEOM, model.floor_geom).unwrap_or("(unnamed)");
+    println!("floor     `{floor}`{}", if model.own_floor { ", the body file's own ground plane" } else { "" });
     println!(
         "rates     physics {} Hz, control {} Hz ({} substeps), meta {} Hz",
         s.rates.physics_hz,
@@ -74,6 +99,34 @@ fn check(file: Option<PathBuf>) -> Result<()> {
         mj.nu(),
         repertoire_scenes::mujoco_version()
     );
+    print_props(s);
+    print_zones(s);
+    println!("task      {}", describe_task(&s.task));
+    println!("skills    {}", if s.skills.is_empty() { "none".into() } else { s.skills.join(", ") });
+    if let Some(g) = &s.skill_graph {
+        println!("graph     start {}; {} transitions", g.start.join(", "), g.edges.len());
+        for guard in &g.guards {
+            println!("  guard   {} only within {} m of {}", guard.skill, guard.within_m, guard.near);
+        }
+    }
+    if !s.bind.is_empty() {
+        let bound: Vec<String> = s
+            .bind
+            .iter()
+            .map(|(name, to)| match to {
+                PropBinding::Prop(p) => format!("{name} → {p}"),
+                PropBinding::Focal => format!("{name} → the focal pedestal"),
+            })
+            .collect();
+        println!("bind      skills' props: {}", bound.join(", "));
+    }
+    print_levels(&model);
+    println!("ok");
+    Ok(())
+}
+
+/// The scenario's props, one line each.
+fn print_props(s: &repertoire_scenes::Scenario) {
     println!("props     {}", s.props.len());
     for p in &s.props {
         let at = p.pose();
@@ -96,6 +149,10 @@ fn check(file: Option<PathBuf>) -> Result<()> {
         };
         println!("  {:<8} {:<10} at x {} y {}{polar} yaw {}°  {}", p.kind(), p.name(), at.x, at.y, at.yaw_deg, detail);
     }
+}
+
+/// The spawn zones, one line each.
+fn print_zones(s: &repertoire_scenes::Scenario) {
     println!("zones     {}", s.spawn.len());
     for z in &s.spawn {
         let facing = match z.facing {
@@ -114,25 +171,11 @@ fn check(file: Option<PathBuf>) -> Result<()> {
             facing
         );
     }
-    println!("task      {}", describe_task(&s.task));
-    println!("skills    {}", if s.skills.is_empty() { "none".into() } else { s.skills.join(", ") });
-    if let Some(g) = &s.skill_graph {
-        println!("graph     start {}; {} transitions", g.start.join(", "), g.edges.len());
-        for guard in &g.guards {
-            println!("  guard   {} only within {} m of {}", guard.skill, guard.within_m, guard.near);
-        }
-    }
-    if !s.bind.is_empty() {
-        let bound: Vec<String> = s
-            .bind
-            .iter()
-            .map(|(name, to)| match to {
-                PropBinding::Prop(p) => format!("{name} → {p}"),
-                PropBinding::Focal => format!("{name} → the focal pedestal"),
-            })
-            .collect();
-        println!("bind      skills' props: {}", bound.join(", "));
-    }
+}
+
+/// The low level (skills or a latent model) and the curriculum.
+fn print_levels(model: &WorldModel) {
+    let s = &model.scenario.scenario;
     match model.scenario.latent_dir() {
         None => println!("low level skills (the meta-controller picks among them)"),
         Some(dir) => println!("low level latent model {} (a high-level policy over z ∈ (−2, 2)^d)", dir.display()),
@@ -148,8 +191,6 @@ fn check(file: Option<PathBuf>) -> Result<()> {
         ),
         None => println!("curriculum none"),
     }
-    println!("ok");
-    Ok(())
 }
 
 fn on(base: &Option<String>) -> String {

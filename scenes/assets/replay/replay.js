@@ -183,6 +183,18 @@ const startYaw = (() => {
   return Math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z));
 })();
 const orbit = { azimuth: startYaw - Math.PI / 3, elevation: 0.3, distance: 4.2, target: new THREE.Vector3(0, 0, 0.9) };
+// Fixed views, set from the character's heading at the first frame (the orbit still follows the
+// pelvis): its right side, its front, from above.
+const VIEWS = {
+  side: { azimuth: startYaw - Math.PI / 2, elevation: 0.12, distance: 4.2 },
+  front: { azimuth: startYaw, elevation: 0.12, distance: 4.2 },
+  top: { azimuth: startYaw - Math.PI / 2, elevation: 1.45, distance: 5.0 },
+};
+function setView(name) {
+  const v = VIEWS[name];
+  if (v) Object.assign(orbit, v);
+}
+ui('viewpreset').onchange = (e) => setView(e.target.value);
 let drag = null;
 renderer.domElement.addEventListener('pointerdown', (e) => { drag = { x: e.clientX, y: e.clientY }; });
 window.addEventListener('pointerup', () => { drag = null; });
@@ -334,6 +346,54 @@ function frameLoop(now) {
   hook.drawn += 1;
   requestAnimationFrame(frameLoop);
 }
+// A contact sheet of the recording (`repertoire replay FILE --filmstrip OUT.png`): `count`
+// frames evenly spaced from the first to the last, each drawn from `view` around the pelvis of
+// its own frame, `columns` to a row, each captioned with its time and skill (and a fall).
+// Returns the sheet as a PNG data URL.
+hook.filmstrip = (count, view, columns, tileW, tileH) => {
+  setPlaying(false);
+  if (!VIEWS[view]) throw new Error(`unknown view ${view}`);
+  setView(view);
+  const n = Math.max(1, Math.min(count, N));
+  const cols = Math.max(1, Math.min(columns, n));
+  const rows = Math.ceil(n / cols);
+  const caption = 22;
+  const sheet = document.createElement('canvas');
+  sheet.width = cols * tileW;
+  sheet.height = rows * (tileH + caption);
+  const ctx = sheet.getContext('2d');
+  ctx.fillStyle = '#1b1f24';
+  ctx.fillRect(0, 0, sheet.width, sheet.height);
+  renderer.setPixelRatio(1);
+  renderer.setSize(tileW, tileH, false);
+  camera.aspect = tileW / tileH;
+  camera.updateProjectionMatrix();
+  for (let i = 0; i < n; i++) {
+    const f = n === 1 ? 0 : Math.round((i * (N - 1)) / (n - 1));
+    placeFrame(f);
+    const k = (f * NB + H.root) * P;
+    orbit.target.set(poses[k], poses[k + 1], Math.max(0.5, poses[k + 2]));
+    const ce = Math.cos(orbit.elevation);
+    camera.position.set(
+      orbit.target.x + orbit.distance * ce * Math.cos(orbit.azimuth),
+      orbit.target.y + orbit.distance * ce * Math.sin(orbit.azimuth),
+      orbit.target.z + orbit.distance * Math.sin(orbit.elevation),
+    );
+    camera.lookAt(orbit.target);
+    renderer.render(scene, camera);
+    const x = (i % cols) * tileW, y = Math.floor(i / cols) * (tileH + caption);
+    ctx.drawImage(renderer.domElement, x, y, tileW, tileH);
+    ctx.fillStyle = fallCode[f] ? '#ff5050' : '#e8e8e8';
+    ctx.font = '14px sans-serif';
+    const s = skill[f] < 0 ? '' : `  ${H.skills[skill[f]]}`;
+    const fell = fallCode[f] ? `  FALLEN (${fallCause(f)})` : '';
+    ctx.fillText(`t ${time[f].toFixed(2)} s${s}${fell}`, x + 6, y + tileH + 16);
+  }
+  renderer.setPixelRatio(Math.min(window.devicePixelRatio || 1, 2));
+  resize();
+  return sheet.toDataURL('image/png');
+};
+
 setPlaying(true);
 hook.ready = true;
 requestAnimationFrame(frameLoop);

@@ -502,7 +502,7 @@ impl Obstacle {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SkillSpec {
-    /// The skill's name (one of the scenario's known skills).
+    /// The skill's name: its library folder (see [`repertoire_scenes::scenario::skill_name_problem`]).
     pub name: String,
     /// The scene it trains in: a scenario file relative to the spec, or `builtin:sit`.
     pub scene: String,
@@ -585,12 +585,8 @@ impl SpecFile {
             .from_str(text)
             .map_err(|e| SkillError::ron(path, e))?;
         let bad = |m: String| Err(SkillError::Invalid(format!("{}: {m}", path.display())));
-        if !repertoire_scenes::scenario::KNOWN_SKILLS.contains(&spec.name.as_str()) {
-            return bad(format!(
-                "unknown skill `{}`; known skills: {}",
-                spec.name,
-                repertoire_scenes::scenario::KNOWN_SKILLS.join(", ")
-            ));
+        if let Some(problem) = repertoire_scenes::scenario::skill_name_problem(&spec.name) {
+            return bad(problem);
         }
         if !(spec.episode_s.is_finite() && spec.episode_s > 0.0) {
             return bad(format!("episode_s must be positive, got {}", spec.episode_s));

@@ -427,9 +427,12 @@ fn a_lead_in_holds_the_clips_first_frame_still_before_it_plays() {
 fn bad_specs_are_refused_with_the_place() {
     let dir = temp("bad-spec");
     let text = std::fs::read_to_string(specs().join("walk.ron")).unwrap();
-    let bad = text.replace("name: \"walk\"", "name: \"moonwalk\"");
-    let err = SpecFile::parse(&dir.join("w.ron"), &bad).expect_err("unknown skill").to_string();
-    assert!(err.contains("unknown skill `moonwalk`") && err.contains("w.ron"), "{err}");
+    let bad = text.replace("name: \"walk\"", "name: \"Moon Walk\"");
+    let err = SpecFile::parse(&dir.join("w.ron"), &bad).expect_err("a name that is no folder").to_string();
+    assert!(err.contains("skill name `Moon Walk`") && err.contains("w.ron"), "{err}");
+    // A new skill needs no list to be in: its name is enough.
+    let new = text.replace("name: \"walk\"", "name: \"moonwalk\"");
+    assert_eq!(SpecFile::parse(&dir.join("w.ron"), &new).expect("a new skill").spec.name, "moonwalk");
     let bad = text.replace("episode_s: 10.0", "episode_s: 10.0, wobble: 3");
     let err = SpecFile::parse(&dir.join("w.ron"), &bad).expect_err("unknown field").to_string();
     assert!(err.contains("w.ron:") && err.contains("wobble"), "{err}");

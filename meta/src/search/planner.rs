@@ -21,7 +21,7 @@ use std::sync::Arc;
 
 use repertoire_learn::env::Env;
 
-use crate::env::{MetaEnv, MetaSetup};
+use crate::env::{MetaEnv, MetaSetup, terminal_skills};
 
 /// How far the planner searches.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -53,19 +53,6 @@ pub fn write_action(setup: &MetaSetup, (option, target): Move, act: &mut [f32]) 
     let [a, b] = setup.skills[option].target_action(azimuth, distance);
     act[1] = a;
     act[2] = b;
-}
-
-/// Which of `setup`'s skills are terminal: the graph leaves no way out of them but themselves
-/// (sit), so once chosen they play to the episode's end.
-pub fn terminal_skills(setup: &MetaSetup) -> Vec<bool> {
-    let k = setup.skills.len();
-    let mut mask = vec![false; k];
-    (0..k)
-        .map(|c| {
-            setup.graph.allowed(Some(c), &mut mask);
-            mask.iter().enumerate().all(|(j, &m)| !m || j == c)
-        })
-        .collect()
 }
 
 /// A plan's simulated outcome.
@@ -202,7 +189,7 @@ impl Planner {
         &self.setup
     }
 
-    /// Which skills are terminal ([`terminal_skills`]).
+    /// Which skills are terminal ([`crate::env::terminal_skills`]).
     pub fn terminal(&self) -> &[bool] {
         &self.terminal
     }

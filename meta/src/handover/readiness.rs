@@ -3,14 +3,14 @@
 //! answer is yes.
 //!
 //! A terminal skill (one the graph leaves no way out of) decides the episode the moment it is
-//! chosen. The planner ([`crate::planner`]) knows whether it will succeed because it plays it
+//! chosen. The planner ([`crate::search::planner`]) knows whether it will succeed because it plays it
 //! out in a copy of the episode; a controller trained by PPO has to learn it from the rare
 //! decisions on which it happened to sit. Here it is learned directly: the controller plays
 //! seeded episodes without its terminal skills, and every decision at which one could have been
 //! chosen is labelled with whether it would have succeeded (played out in a copy of the
 //! episode), and a classifier ([`repertoire_learn::classify`]) is fitted to the labels. The result is a
 //! folder (`readiness.ron` + `readiness.safetensors`) beside the controller; the gated
-//! controller ([`crate::eval::Controller::Gated`]) then sits when the classifier says it is at
+//! controller ([`crate::controller::Gated`]) then sits when the classifier says it is at
 //! least `threshold` likely to succeed, and chooses among the other skills otherwise — the
 //! options framework's initiation set, learned from counterfactual rollouts.
 
@@ -24,10 +24,11 @@ use repertoire_learn::classify::{Classifier, ClassifierConfig, Separation, fit, 
 use repertoire_learn::env::Env;
 use serde::{Deserialize, Serialize};
 
+use crate::env::terminal_skills;
+use crate::env::trial_rng;
 use crate::env::{MetaEnv, MetaSetup};
 use crate::error::{MetaError, Result};
-use crate::eval::trial_rng;
-use crate::planner::{Planner, PlannerConfig, terminal_skills, write_action};
+use crate::search::planner::{Planner, PlannerConfig, write_action};
 use crate::train::check_skill_weights;
 use repertoire_learn::run_dir::git_hash;
 

@@ -2,8 +2,8 @@
 //! episode plays seeded episodes from the scenario's zones; its decisions, with the observation
 //! and the options the graph allowed, are the demonstrations a hybrid policy is fitted to by
 //! behaviour cloning ([`Ppo::behaviour_clone`]). The teacher is the search-based planner
-//! ([`crate::planner`]; the fit starts from a fresh policy) or a trained controller's own
-//! lookahead ([`crate::lookahead`]; the fit starts from that controller, so what it learns is
+//! ([`crate::search::planner`]; the fit starts from a fresh policy) or a trained controller's own
+//! lookahead ([`crate::search::lookahead`]; the fit starts from that controller, so what it learns is
 //! the decisions its lookahead changed: expert iteration). The result is an ordinary
 //! meta-controller (`meta.ron` + `meta.safetensors`): it acts from its observation alone, at no
 //! search cost, and `meta eval --meta DIR` evaluates it.
@@ -18,11 +18,11 @@ use repertoire_learn::acting::ActingHybrid;
 use repertoire_learn::env::{Env, EnvRng};
 use repertoire_learn::ppo::{Ppo, PpoConfig};
 
+use crate::controller::{Controller, LookingAhead};
 use crate::env::{MetaEnv, MetaSetup};
 use crate::error::{MetaError, Result};
-use crate::eval::Controller;
-use crate::lookahead::LookaheadConfig;
-use crate::planner::PlannerConfig;
+use crate::search::lookahead::LookaheadConfig;
+use crate::search::planner::PlannerConfig;
 use crate::train::{MetaManifest, MetaTrainOptions, Session, TrainedRun, save_controller, warm_start};
 
 /// Whose decisions a distillation fits.
@@ -99,7 +99,7 @@ pub struct DistillFigures {
     pub fitting_s: f64,
 }
 
-fn run_episode(setup: &Arc<MetaSetup>, teacher: &Controller<'_>, seed: u64, stream: u64) -> Episode {
+fn run_episode(setup: &Arc<MetaSetup>, teacher: &dyn Controller, seed: u64, stream: u64) -> Episode {
     let mut env = MetaEnv::new(Arc::clone(setup));
     let mut acting = teacher.start(setup);
     let mut rng = EnvRng::seed_from_u64(seed);
@@ -137,9 +137,16 @@ pub fn distill(setup: Arc<MetaSetup>, opts: &DistillOptions) -> Result<(MetaMani
     let mut ppo = Ppo::new(opts.ppo.clone(), envs);
     let from = opts.warm_start.as_ref().map(|dir| warm_start(dir, &[], &setup, &mut ppo)).transpose()?;
     let head = ActingHybrid::from_ppo(&ppo).expect("the meta environment has hybrid actions");
-    let teacher = match (opts.teacher, &from) {
-        (Teacher::Planner(cfg), _) => Controller::Planner(cfg),
-        (Teacher::Lookahead(cfg), Some(_)) => Controller::Lookahead(&head, cfg),
+    let (planner, looking);
+    let teacher: &dyn Controller = match (opts.teacher, &from) {
+        (Teacher::Planner(cfg), _) => {
+            planner = cfg;
+            &planner
+        }
+        (Teacher::Lookahead(cfg), Some(_)) => {
+            looking = LookingAhead { head: &head, lookahead: cfg };
+            &looking
+        }
         (Teacher::Lookahead(_), None) => {
             return Err(MetaError::Invalid(
                 "a lookahead teacher looks ahead with a trained controller: name it as the warm start".into(),
@@ -151,7 +158,7 @@ pub fn distill(setup: Arc<MetaSetup>, opts: &DistillOptions) -> Result<(MetaMani
         *setup.zones.write().expect("never poisoned") = vec![zone.clone()];
         let batch: Vec<Episode> = (0..opts.episodes)
             .into_par_iter()
-            .map(|i| run_episode(&setup, &teacher, opts.seed, (zi * opts.episodes + i) as u64 + 1))
+            .map(|i| run_episode(&setup, teacher, opts.seed, (zi * opts.episodes + i) as u64 + 1))
             .collect();
         tracing::info!(
             zone = %zone,

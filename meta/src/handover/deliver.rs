@@ -21,9 +21,9 @@ use repertoire_scenes::math::wrap_angle;
 use repertoire_skill::pool::{Pool, PoolState};
 use serde::{Deserialize, Serialize};
 
+use crate::controller::Controller;
 use crate::env::{MetaEnv, MetaSetup};
 use crate::error::{MetaError, Result};
-use crate::eval::Controller;
 use crate::task::TaskSpec;
 
 /// Which decision states count as deliveries to the skill.
@@ -78,9 +78,9 @@ pub struct Delivery {
 /// `max_states`. Sitting scenarios only. `window: None` (a skill without a seat goal) keeps
 /// every decision state.
 #[allow(clippy::too_many_arguments)]
-pub fn deliver<'c>(
+pub fn deliver(
     setup: &Arc<MetaSetup>,
-    controller: impl Into<Controller<'c>>,
+    controller: &dyn Controller,
     skill: &str,
     zones: &[String],
     trials: usize,
@@ -104,7 +104,6 @@ pub fn deliver<'c>(
         )));
     };
     setup.check_zones(zones)?;
-    let controller = controller.into();
     let mut counts = Counts::default();
     let mut kept = Vec::new();
     let mut handed = Vec::new();
@@ -115,7 +114,7 @@ pub fn deliver<'c>(
             .map(|i| {
                 let mut env = MetaEnv::new(Arc::clone(setup));
                 let mut ctl = controller.start(setup);
-                let mut rng = crate::eval::trial_rng(seed, zi, trials, i);
+                let mut rng = crate::env::trial_rng(seed, zi, trials, i);
                 let mut obs = vec![0.0; env.obs_dim()];
                 let mut act = vec![0.0; env.act_dim()];
                 let mut mask = vec![true; setup.skills.len()];

@@ -12,13 +12,13 @@ use std::sync::Arc;
 
 use rand::SeedableRng;
 use rayon::prelude::*;
-use repertoire_learn::acting::ActingHybrid;
 use repertoire_learn::env::{Env, EnvRng};
 use repertoire_report::grid_map;
 use repertoire_scenes::Recording;
 use repertoire_scenes::scenario::WarehousePhase;
 use serde::{Deserialize, Serialize};
 
+use crate::controller::Controller;
 use crate::env::{MetaEnv, MetaSetup};
 use crate::error::{MetaError, Result};
 use crate::task::{EpisodeOverride, TaskSpec, TaskState};
@@ -33,11 +33,11 @@ struct Ended {
     episode_return: f64,
 }
 
-/// Runs one episode with `controller` (acting by its mode), starting as `over` says, on rng
+/// Runs one episode with `controller`, starting as `over` says, on rng
 /// stream `stream` of `seed`.
 fn run_episode(
     setup: &Arc<MetaSetup>,
-    controller: &ActingHybrid,
+    controller: &dyn Controller,
     over: EpisodeOverride,
     seed: u64,
     stream: u64,
@@ -48,7 +48,7 @@ fn run_episode(
 /// [`run_episode`], recorded at the control rate under `title` when one is given.
 fn run_recorded(
     setup: &Arc<MetaSetup>,
-    controller: &ActingHybrid,
+    controller: &dyn Controller,
     over: EpisodeOverride,
     seed: u64,
     stream: u64,
@@ -59,7 +59,7 @@ fn run_recorded(
         env.record_episodes(title);
     }
     env.set_override(over);
-    let mut ctl = controller.clone();
+    let mut ctl = controller.start(setup);
     let mut rng = EnvRng::seed_from_u64(seed);
     rng.set_stream(stream);
     let mut obs = vec![0.0; env.obs_dim()];
@@ -68,8 +68,7 @@ fn run_recorded(
     env.reset(&mut rng, &mut obs);
     let mut episode_return = 0.0;
     loop {
-        env.option_mask(&mut mask);
-        ctl.act(&obs, &mask, &mut act);
+        ctl.act(&env, &obs, &mut mask, &mut act);
         let out = env.step(&act, &mut obs);
         episode_return += f64::from(out.reward);
         if out.terminated || out.truncated {
@@ -197,7 +196,7 @@ pub struct WarehouseReport {
 /// it turned at random.
 pub fn evaluate_warehouse(
     setup: &Arc<MetaSetup>,
-    controller: &ActingHybrid,
+    controller: &dyn Controller,
     episodes: usize,
     grid: Option<StartGrid>,
     seed: u64,
@@ -302,7 +301,7 @@ pub fn worst_warehouse(report: &WarehouseReport, n: usize) -> Vec<&WarehouseTria
 /// the files written.
 pub fn save_worst_warehouse(
     setup: &Arc<MetaSetup>,
-    controller: &ActingHybrid,
+    controller: &dyn Controller,
     report: &mut WarehouseReport,
     seed: u64,
     n: usize,
@@ -520,7 +519,7 @@ pub struct TossReport {
 /// ranges (the strike zone), the rest of each throw drawn.
 pub fn evaluate_toss(
     setup: &Arc<MetaSetup>,
-    controller: &ActingHybrid,
+    controller: &dyn Controller,
     n_vx: usize,
     n_lateral: usize,
     trials: usize,
@@ -576,7 +575,7 @@ pub fn worst_toss(report: &TossReport, n: usize) -> Vec<&TossTrial> {
 /// `report_dir`); a rerun that ends differently is an error. Returns the files written.
 pub fn save_worst_toss(
     setup: &Arc<MetaSetup>,
-    controller: &ActingHybrid,
+    controller: &dyn Controller,
     report: &mut TossReport,
     seed: u64,
     n: usize,

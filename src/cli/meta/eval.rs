@@ -1,0 +1,153 @@
+//! `repertoire meta eval [FILE]`: any controller (`--controller`) on any task, through one
+//! evaluation ([`repertoire_meta::evaluation`]); also what `repertoire run` evaluates with.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Instant;
+
+use anyhow::{Result, bail};
+use repertoire_meta::evaluation::{EvalPlan, TaskReport, Worst, evaluate_task};
+use repertoire_meta::tasks::task_eval::StartGrid;
+use repertoire_meta::{MetaSetup, TaskSpec};
+
+use crate::cli::controller::{Choice, ControllerArgs, GraphArgs, Loaded, ScenarioArgs};
+
+/// Evaluate a controller. Sitting: success, falls and minimum distance per zone, transition
+/// matrices. Warehouse: phases completed per episode by start phase and a pick-up map over a
+/// start grid. Toss: catch rate and return over a grid of throw speeds (the strike zone). Writes
+/// report.md, a CSV, report.json and pictures, and records the worst episodes.
+#[derive(Debug, clap::Args)]
+pub struct EvalArgs {
+    #[command(flatten)]
+    scenario: ScenarioArgs,
+    #[command(flatten)]
+    graph: GraphArgs,
+    #[command(flatten)]
+    controller: ControllerArgs,
+    /// Trials per zone (sitting, default 10000; the planner 100) or episodes (warehouse,
+    /// default 200).
+    #[arg(long)]
+    trials: Option<usize>,
+    /// Cells per side of the warehouse's pick-up map (default 9; 0: none) or of the toss's
+    /// strike zone (default 7).
+    #[arg(long)]
+    grid: Option<usize>,
+    /// Trials per grid cell.
+    #[arg(long, default_value_t = 10)]
+    grid_trials: usize,
+    /// Half the side of the warehouse's start grid around the box's pedestal (m).
+    #[arg(long, default_value_t = 4.0)]
+    grid_half_m: f64,
+    /// Zones (default: all of the scenario's).
+    #[arg(long, value_delimiter = ',')]
+    zones: Vec<String>,
+    /// Trials run in parallel per batch.
+    #[arg(long, default_value_t = 64)]
+    batch: usize,
+    /// Seed.
+    #[arg(long, default_value_t = 2024)]
+    seed: u64,
+    /// Report folder (default: CONTROLLER/eval; CONTROLLER/eval-<choice> for a search or a gate;
+    /// runs/planner-<scenario> for the planner).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Record this many of the worst trials into <out>/worst/ (with replay pages when three.js
+    /// is installed): sitting's failures with the largest distance, the warehouse's fewest
+    /// phases, the toss's uncaught throws, then the lowest return; 0 records none.
+    #[arg(long, default_value_t = 3)]
+    worst: usize,
+    /// Evaluate a high level trained through this latent model (overrides the scenario's
+    /// `low_level`).
+    #[arg(long)]
+    latent: Option<PathBuf>,
+}
+
+impl EvalArgs {
+    /// The episodes to play in `setup`'s task, with each task's defaults.
+    fn plan(&self, setup: &MetaSetup, choice: &Choice) -> EvalPlan {
+        let per_cell = self.grid_trials;
+        let (trials, pickup, strike_zone) = match setup.task {
+            TaskSpec::Sit { .. } => {
+                let default = if *choice == Choice::Planner { 100 } else { 10_000 };
+                (self.trials.unwrap_or(default), None, (0, 0, 0))
+            }
+            TaskSpec::Warehouse(_) => {
+                let n = self.grid.unwrap_or(9);
+                let pickup = (n > 0).then_some(StartGrid { n, half_m: self.grid_half_m, trials: per_cell });
+                (self.trials.unwrap_or(200), pickup, (0, 0, 0))
+            }
+            TaskSpec::Toss(_) => {
+                let n = self.grid.unwrap_or(7).max(1);
+                (0, None, (n, n, per_cell))
+            }
+        };
+        EvalPlan {
+            zones: super::zones_or_all(self.zones.clone(), &setup.model.scenario.scenario),
+            trials,
+            batch: self.batch,
+            seed: self.seed,
+            pickup,
+            strike_zone,
+        }
+    }
+}
+
+/// `meta eval`.
+pub fn eval(a: EvalArgs) -> Result<()> {
+    if let Some((model, dir)) = super::latent_low_level(a.scenario.file.as_ref(), a.latent.clone())? {
+        if a.controller.choice()? != Choice::Learned {
+            bail!("--controller chooses among the skills: a latent low level has only its trained high level");
+        }
+        super::no_skill_options(&a.graph.chain, &a.graph.skills)?;
+        let zones = super::zones_or_all(a.zones, &model.scenario.scenario);
+        let eval = super::LatentEval {
+            library: a.scenario.library,
+            meta: a.controller.meta,
+            trials: a.trials.unwrap_or(10_000),
+            zones,
+            batch: a.batch,
+            seed: a.seed,
+            out: a.out,
+        };
+        return super::eval_latent(model, &dir, eval);
+    }
+    let setup = super::setup(a.scenario.file.as_ref(), &a.scenario.library, &a.graph.chain, &a.graph.skills)?;
+    let loaded = Loaded::load(&a.controller, &setup, &a.scenario.library, a.seed)?;
+    let plan = a.plan(&setup, &loaded.choice);
+    let out = a.out.clone().unwrap_or_else(|| loaded.default_out(&setup));
+    println!("{}\n", loaded.describe()?);
+    evaluate_and_report(&setup, &loaded, &plan, Worst::Overall(a.worst), &out)?;
+    Ok(())
+}
+
+/// Evaluates `loaded` as `plan` says, records the `worst` episodes, prints the report and
+/// writes it into `out` (the report first, so a recording that fails loses no evaluation).
+pub fn evaluate_and_report(
+    setup: &Arc<MetaSetup>,
+    loaded: &Loaded,
+    plan: &EvalPlan,
+    worst: Worst,
+    out: &Path,
+) -> Result<TaskReport> {
+    let controller = loaded.controller()?;
+    let started = Instant::now();
+    let mut report = evaluate_task(setup, controller.as_ref(), plan)?;
+    let seconds = started.elapsed().as_secs_f64();
+    report.write(out)?;
+    let recs = report.record_worst(setup, controller.as_ref(), plan, worst, out)?;
+    if !recs.is_empty() {
+        report.write(out)?;
+    }
+    print!("{}", report.markdown());
+    println!("\n{} episodes in {seconds:.1} s; {} written to {}", report.episodes(), report.files(), out.display());
+    crate::cli::replay::pages_beside(&recs);
+    if !recs.is_empty() {
+        println!(
+            "{} worst episodes recorded in {} (watch: repertoire replay {})",
+            recs.len(),
+            out.join("worst").display(),
+            out.display()
+        );
+    }
+    Ok(report)
+}
