@@ -121,14 +121,13 @@ pub fn html(rec: &Recording, three_build: &Path) -> Result<String> {
 <div id="overlay"><div id="title">{title}</div><div id="info"></div><table id="terms"></table></div>
 <div id="bar">
   <button id="play" title="play / pause (space)">❚❚</button>
-  <input id="scrub" type="range" min="0" max="0" value="0" step="1" title="scrub (← →)">
   <span id="clock"></span>
   <label>speed <select id="speed"><option>0.25</option><option>0.5</option><option selected>1</option><option>2</option><option>4</option></select></label>
   <label>ghost <select id="ghostmode"><option value="beside" selected>beside</option><option value="overlay">overlay</option><option value="off">off</option></select></label>
   <label><input id="follow" type="checkbox" checked> follow</label>
   <label>view <select id="viewpreset"><option value="free" selected>free</option><option value="side">side</option><option value="front">front</option><option value="top">top</option></select></label>
 </div>
-<div id="timeline"><canvas id="strip"></canvas><div id="legend"></div></div>
+<div id="timeline"><input id="scrub" type="range" min="0" max="0" value="0" step="1" title="scrub (← →)"><canvas id="strip"></canvas><div id="legend"></div></div>
 <div id="error" hidden></div>
 "#
     ));

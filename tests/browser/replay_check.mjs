@@ -85,6 +85,51 @@ try {
   }
   // An episode plays once and stops on its last frame; before that it must be playing.
   if (!later.playing && later.frame !== later.frames - 1) problems.push('the page is not playing');
+  // The timeline: the slider and the skill strip span the same width, and their playheads agree
+  // at the start, the middle and the end; the legend shows every skill (no row cut off); a
+  // recording with a fall shows the fall's red on the strip.
+  result.layout = await page.evaluate(async () => {
+    const box = (id) => document.getElementById(id).getBoundingClientRect();
+    const out = { scrub: box('scrub'), strip: box('strip'), playheads: [] };
+    const hook = window.__replay;
+    const strip = document.getElementById('strip');
+    for (const f of [0, Math.floor((hook.frames - 1) / 2), hook.frames - 1]) {
+      const s = document.getElementById('scrub');
+      s.value = String(f);
+      s.dispatchEvent(new Event('input'));
+      await new Promise((r) => setTimeout(r, 150));
+      // The slider's thumb centre, from its value as the browser lays it out (an 8 px inset).
+      const r = s.getBoundingClientRect();
+      const thumb = r.left + 8 + (f / Math.max(1, hook.frames - 1)) * (r.width - 16);
+      // The strip's playhead: its white column, read back from the canvas.
+      const ctx = strip.getContext('2d');
+      const row = ctx.getImageData(0, 2, strip.width, 1).data;
+      let x = -1;
+      for (let i = 0; i < strip.width; i++) if (row[4 * i] === 255 && row[4 * i + 1] === 255 && row[4 * i + 2] === 255) { x = i; break; }
+      out.playheads.push({ frame: f, thumb, strip: x < 0 ? null : strip.getBoundingClientRect().left + x + 1 });
+    }
+    const legend = document.getElementById('legend');
+    const lb = legend.getBoundingClientRect();
+    const items = [...legend.querySelectorAll('span')];
+    out.legend = { items: items.length, cut: items.filter((e) => e.getBoundingClientRect().bottom > lb.bottom + 0.5).length };
+    const px = strip.getContext('2d').getImageData(0, 0, strip.width, strip.height).data;
+    let red = 0;
+    for (let i = 0; i < px.length; i += 4) if (px[i] === 255 && px[i + 1] === 32 && px[i + 2] === 32) red++;
+    out.fall_frames = hook.fall_frames;
+    out.red_pixels = red;
+    return out;
+  });
+  const L = result.layout;
+  if (Math.abs(L.scrub.left - L.strip.left) > 1 || Math.abs(L.scrub.right - L.strip.right) > 1) {
+    problems.push(`the slider (${L.scrub.left}–${L.scrub.right}) and the strip (${L.strip.left}–${L.strip.right}) differ in width`);
+  }
+  for (const p of L.playheads) {
+    if (p.strip === null || Math.abs(p.strip - p.thumb) > 2) {
+      problems.push(`frame ${p.frame}: the strip's playhead at ${p.strip}, the slider's at ${p.thumb.toFixed(1)}`);
+    }
+  }
+  if (L.legend.cut > 0) problems.push(`${L.legend.cut} of ${L.legend.items} legend entries are cut off`);
+  if (L.fall_frames > 0 && L.red_pixels === 0) problems.push('a fall is recorded and the strip shows no red');
   // The overlay at given frames: the slider moved there as a user would.
   result.overlay = {};
   for (let i = 0; i < expect.length; i += 2) {

@@ -48,6 +48,7 @@ const pelvisLabel = (f) => {
   const p = pelvisOn ? pelvisOn[f] : 0;
   return p && H.props[p - 1] ? `pelvis on ${H.props[p - 1][0]}` : 'pelvis on a prop';
 };
+hook.fall_frames = fallCode.reduce((n, c) => n + (c ? 1 : 0), 0);
 const fallCause = (f) => (fallCode[f] ? (data.fall_causes || [])[fallCode[f] - 1] || 'fall' : '');
 const NT = H.terms.length;
 const character = H.bodies.map((b, i) => (b.character ? i : -1)).filter((i) => i >= 0);
@@ -210,7 +211,10 @@ renderer.domElement.addEventListener('wheel', (e) => {
 }, { passive: false });
 
 // Timeline strip coloured by active skill.
-const palette = ['#4e79a7', '#f28e2b', '#59a14f', '#e15759', '#b07aa1', '#76b7b2', '#edc948', '#ff9da7', '#9c755f'];
+// No red or pink among the skills: red is the fall's alone.
+const palette = ['#4e79a7', '#f28e2b', '#59a14f', '#b07aa1', '#76b7b2', '#edc948', '#9c755f', '#bab0ac', '#86bcb6'];
+// Half the width of the slider's thumb: the slider's track starts and ends that far in.
+const THUMB_INSET = 8;
 const skillColor = (s) => (s < 0 ? '#555b62' : palette[s % palette.length]);
 const strip = ui('strip');
 function drawStrip(frame) {
@@ -219,8 +223,9 @@ function drawStrip(frame) {
   if (strip.height !== h) strip.height = h;
   const ctx = strip.getContext('2d');
   ctx.clearRect(0, 0, w, h);
+  const span = Math.max(1, w - 2 * THUMB_INSET);
   for (let x = 0; x < w; x++) {
-    const f = Math.min(N - 1, Math.floor((x / w) * N));
+    const f = Math.min(N - 1, Math.max(0, Math.floor(((x - THUMB_INSET) / span) * N)));
     ctx.fillStyle = skillColor(skill[f]);
     ctx.fillRect(x, 0, 1, h - 4);
     // A fall covers the lower half of the strip in hatched red from the frame it counted on, so
@@ -233,19 +238,27 @@ function drawStrip(frame) {
       ctx.fillRect(x, h - 3, 1, 3);
     }
   }
-  const cx = (frame / Math.max(1, N - 1)) * (w - 1);
+  const cx = THUMB_INSET + (frame / Math.max(1, N - 1)) * (span - 1);
   ctx.fillStyle = '#ffffff';
   ctx.fillRect(Math.round(cx) - 1, 0, 3, h);
 }
 strip.addEventListener('pointerdown', (e) => {
   const r = strip.getBoundingClientRect();
-  cursor = Math.min(N - 1, Math.max(0, Math.round(((e.clientX - r.left) / r.width) * (N - 1))));
+  const at = (e.clientX - r.left - THUMB_INSET) / Math.max(1, r.width - 2 * THUMB_INSET);
+  cursor = Math.min(N - 1, Math.max(0, Math.round(at * (N - 1))));
   setPlaying(false);
 });
 ui('legend').innerHTML = H.skills.length
   ? H.skills.map((s, i) => `<span><i style="background:${skillColor(i)}"></i>${s.replace(/</g, '&lt;')}</span>`).join('')
   : '<span>no skill annotation</span>';
 
+// Each term's bar is its size against the largest it reaches in this recording (a distance of
+// 2.95 m is not a "full" bar unless nothing in the episode is farther); negative values in orange.
+const termScale = H.terms.map((_, k) => {
+  let m = 0;
+  for (let f = 0; f < N; f++) m = Math.max(m, Math.abs(terms[f * NT + k]));
+  return m > 0 ? m : 1;
+});
 const termRows = H.terms.map((name) => {
   const tr = document.createElement('tr');
   tr.innerHTML = `<td></td><td class="v"></td><td><span class="bar"></span></td>`;
@@ -266,6 +279,12 @@ function placeFrame(f) {
   if (hasGhost) {
     const root = character.indexOf(H.root);
     ghostOffset.set(0, 0, 0);
+    if (ghostMode === 'overlay' && root >= 0) {
+      // On the body: the reference's pelvis moved onto the character's, so the pose is compared
+      // where the character is, not where the clip was.
+      const kb = (f * NB + H.root) * P, kg = (f * character.length + root) * P;
+      ghostOffset.set(poses[kb] - ghostPoses[kg], poses[kb + 1] - ghostPoses[kg + 1], 0);
+    }
     if (ghostMode === 'beside' && root >= 0) {
       const k = (f * character.length + root) * P;
       const q = new THREE.Quaternion(ghostPoses[k + 4], ghostPoses[k + 5], ghostPoses[k + 6], ghostPoses[k + 3]);
@@ -296,7 +315,9 @@ function overlay(f) {
   termRows.forEach((tr, k) => {
     const v = terms[f * NT + k];
     tr.children[1].textContent = v.toFixed(3);
-    tr.querySelector('.bar').style.width = `${Math.max(0, Math.min(1, v)) * 60}px`;
+    const bar = tr.querySelector('.bar');
+    bar.style.width = `${Math.min(1, Math.abs(v) / termScale[k]) * 60}px`;
+    bar.style.background = v < 0 ? '#f28e2b' : '#6cb0ff';
   });
   ui('clock').textContent = `${time[f].toFixed(2)} / ${time[N - 1].toFixed(2)} s`;
 }
