@@ -192,9 +192,26 @@ fn meta_train_eval_and_the_main_job() {
     let out = repertoire(&[&args[..], &["--warm-start", dir.join("no-such").to_str().unwrap()]].concat());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("no-such/meta.ron"), "{err}");
-    let text = ok(&repertoire(&["meta", "eval", "--library", lib_s, "--trials", "2", "--zones", "front"]));
+    let args = ["meta", "eval", "--library", lib_s, "--trials", "2", "--zones", "front"];
+    let text = ok(&repertoire(&[&args[..], &["--record", "random:2", "--record", "successes:1"]].concat()));
     assert!(text.contains("| front | 2 |") && text.contains("| all | 2 |"), "{text}");
     assert!(meta.join("eval/report.md").exists() && meta.join("eval/trials.csv").exists());
+    // Other episodes than the worst are recorded on request: both random ones, and a success
+    // when there was one.
+    let recs = |dir: &str| -> Vec<String> {
+        std::fs::read_dir(meta.join("eval").join(dir)).map_or_else(
+            |_| Vec::new(),
+            |d| d.filter_map(|e| e.ok()?.file_name().into_string().ok()).filter(|n| n.ends_with(".rec")).collect(),
+        )
+    };
+    let mut random = recs("random");
+    random.sort();
+    assert_eq!(random, ["trial_front_0.rec", "trial_front_1.rec"], "{text}");
+    let success = text.lines().find(|l| l.starts_with("| front |")).and_then(|l| l.split('|').nth(3)).unwrap();
+    assert_eq!(recs("successes").len(), usize::from(success.trim() != "0.0%"), "{text}");
+    assert!(text.contains("2 random episodes recorded in"), "{text}");
+    let out = repertoire(&[&args[..], &["--record", "best:1"]].concat());
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("successes:N or random:N"));
     // The controller with its sit timed by the planner's copy writes its own report.
     let args = ["meta", "eval", "--library", lib_s, "--trials", "1", "--zones", "front", "--horizon", "2"];
     let text = ok(&repertoire(&[&args[..], &["--controller", "oracle-sit"]].concat()));

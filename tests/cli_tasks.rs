@@ -122,9 +122,15 @@ fn warehouse_evaluations_record_their_worst_episodes() {
     ok(&repertoire(&[&args[..], &["--run-dir", &run_s]].concat()));
     let eval = dir.join("eval");
     let eval_s = eval.to_str().unwrap();
-    let args = ["--meta", meta_s, "--trials", "4", "--grid", "0", "--worst", "2", "--out", eval_s];
+    let args =
+        ["--meta", meta_s, "--trials", "4", "--grid", "0", "--worst", "2", "--out", eval_s, "--record", "random:3"];
     let out = ok(&repertoire(&[&["meta", "eval", "scenes/warehouse.ron"][..], &args[..]].concat()));
     assert!(out.contains("2 worst episodes recorded"), "{out}");
+    let random = std::fs::read_dir(eval.join("random"))
+        .unwrap()
+        .filter(|e| e.as_ref().unwrap().path().extension().is_some_and(|x| x == "rec"))
+        .count();
+    assert_eq!(random, 3, "{out}");
     // A search looks for a sit that succeeds: refused on the warehouse, naming the scenario.
     let out = repertoire(&["meta", "eval", "scenes/warehouse.ron", "--meta", meta_s, "--controller", "lookahead:2"]);
     let err = String::from_utf8_lossy(&out.stderr);

@@ -10,10 +10,11 @@ use std::sync::Arc;
 use crate::controller::Controller;
 use crate::env::MetaSetup;
 use crate::error::{MetaError, Result};
-use crate::eval::{MetaReport, evaluate, save_worst};
+use crate::eval::{MetaReport, evaluate, record_trial, save_worst};
 use crate::task::TaskSpec;
 use crate::tasks::task_eval::{
-    StartGrid, TossReport, WarehouseReport, evaluate_toss, evaluate_warehouse, save_worst_toss, save_worst_warehouse,
+    StartGrid, TossReport, WarehouseReport, evaluate_toss, evaluate_warehouse, record_toss, record_warehouse,
+    save_worst_toss, save_worst_warehouse,
 };
 
 /// Which episodes an evaluation plays. Each task reads its own fields.
@@ -48,6 +49,35 @@ impl Worst {
             Worst::Overall(n) | Worst::PerZone(n) => n,
         }
     }
+}
+
+/// Episodes recorded again besides the worst: to watch what works, or an unbiased sample.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Pick {
+    /// The first `n` that succeeded: seated (sitting), the most phases (the warehouse, at least
+    /// one), caught (the toss, balls in the bucket first).
+    Successes(usize),
+    /// `n` drawn at random without replacement (seeded by the evaluation's seed).
+    Random(usize),
+}
+
+impl Pick {
+    /// The folder under the report folder its recordings go to.
+    pub fn folder(self) -> &'static str {
+        match self {
+            Pick::Successes(_) => "successes",
+            Pick::Random(_) => "random",
+        }
+    }
+}
+
+/// `n` of `0..len` drawn without replacement from `seed`, in increasing order.
+fn drawn(len: usize, n: usize, seed: u64) -> Vec<usize> {
+    use rand::SeedableRng;
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed ^ 0x7265_636f_7264);
+    let mut picked = rand::seq::index::sample(&mut rng, len, n.min(len)).into_vec();
+    picked.sort_unstable();
+    picked
 }
 
 /// An evaluation's report, as its task writes it.
@@ -105,6 +135,67 @@ impl TaskReport {
             }
             TaskReport::Warehouse(report) => save_worst_warehouse(setup, controller, report, seed, n, &dir, out),
             TaskReport::Toss(report) => save_worst_toss(setup, controller, report, seed, n, &dir, out),
+        }
+    }
+
+    /// Runs the episodes `pick` chooses again, recorded, into `out/<pick folder>/`, checked to
+    /// end as they did. Returns the files.
+    pub fn record_picked(
+        &self,
+        setup: &Arc<MetaSetup>,
+        controller: &dyn Controller,
+        plan: &EvalPlan,
+        pick: Pick,
+        out: &Path,
+    ) -> Result<Vec<PathBuf>> {
+        let dir = out.join(pick.folder());
+        let seed = plan.seed;
+        match self {
+            TaskReport::Sit(report) => {
+                let chosen: Vec<&crate::eval::Trial> = match pick {
+                    Pick::Successes(n) => report.trials.iter().filter(|t| t.success).take(n).collect(),
+                    Pick::Random(n) => {
+                        drawn(report.trials.len(), n, seed).into_iter().map(|i| &report.trials[i]).collect()
+                    }
+                };
+                if !chosen.is_empty() {
+                    std::fs::create_dir_all(&dir)
+                        .map_err(|e| MetaError::Invalid(format!("{}: cannot create: {e}", dir.display())))?;
+                }
+                let mut written = Vec::new();
+                for t in chosen {
+                    let path = dir.join(format!("trial_{}_{}.rec", t.zone, t.index));
+                    record_trial(setup, controller, &plan.zones, plan.trials, seed, t)?.save(&path)?;
+                    written.push(path);
+                }
+                Ok(written)
+            }
+            TaskReport::Warehouse(report) => {
+                let indices: Vec<usize> = match pick {
+                    Pick::Successes(n) => {
+                        let mut done: Vec<_> = report.trials.iter().filter(|t| t.phases > 0).collect();
+                        done.sort_by(|a, b| b.phases.cmp(&a.phases).then(a.index.cmp(&b.index)));
+                        done.iter().take(n).map(|t| t.index).collect()
+                    }
+                    Pick::Random(n) => {
+                        drawn(report.trials.len(), n, seed).into_iter().map(|i| report.trials[i].index).collect()
+                    }
+                };
+                record_warehouse(setup, controller, report, seed, &indices, &dir)
+            }
+            TaskReport::Toss(report) => {
+                let indices: Vec<usize> = match pick {
+                    Pick::Successes(n) => {
+                        let mut caught: Vec<_> = report.throws.iter().filter(|t| t.caught).collect();
+                        caught.sort_by(|a, b| b.delivered.cmp(&a.delivered).then(a.index.cmp(&b.index)));
+                        caught.iter().take(n).map(|t| t.index).collect()
+                    }
+                    Pick::Random(n) => {
+                        drawn(report.throws.len(), n, seed).into_iter().map(|i| report.throws[i].index).collect()
+                    }
+                };
+                record_toss(setup, controller, report, seed, &indices, &dir)
+            }
         }
     }
 

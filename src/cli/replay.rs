@@ -11,7 +11,8 @@ use std::sync::Arc;
 
 #[derive(Debug, Args)]
 pub struct ReplayArgs {
-    /// A recording (`.rec`), or a folder holding some (an eval folder's `worst/` is searched too).
+    /// A recording (`.rec`), or a folder holding some (an eval folder's `worst/`, `successes/`
+    /// and `random/` are searched too).
     pub input: PathBuf,
     /// The HTML page to write (default: beside the recording, `.html`); for a folder, a folder.
     #[arg(short, long)]
@@ -103,7 +104,7 @@ pub fn replay_file(input: &Path, out: &Path, web: &Path) -> Result<u64> {
 
 fn recordings_in(dir: &Path) -> Result<Vec<PathBuf>> {
     let mut found = Vec::new();
-    for d in [dir.to_path_buf(), dir.join("worst")] {
+    for d in [dir.to_path_buf(), dir.join("worst"), dir.join("successes"), dir.join("random")] {
         let Ok(entries) = std::fs::read_dir(&d) else { continue };
         for e in entries {
             let p = e.with_context(|| format!("{}: cannot list", d.display()))?.path();

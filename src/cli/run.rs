@@ -88,7 +88,7 @@ fn run_controller(args: &RunArgs, skills: Vec<String>) -> Result<()> {
     let (plan, worst) = quick_plan(&setup, args);
     let secs = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from(format!("runs/run-{secs}-s{}", args.seed)));
-    super::meta::eval::evaluate_and_report(&setup, &loaded, &plan, worst, &out)?;
+    super::meta::eval::evaluate_and_report(&setup, &loaded, &plan, (worst, &[]), &out)?;
     println!("`repertoire meta eval` runs the full evaluation");
     Ok(())
 }

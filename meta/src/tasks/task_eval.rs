@@ -308,9 +308,25 @@ pub fn save_worst_warehouse(
     dir: &Path,
     report_dir: &Path,
 ) -> Result<Vec<PathBuf>> {
-    let worst: Vec<WarehouseTrial> = worst_warehouse(report, n).into_iter().cloned().collect();
+    let worst: Vec<usize> = worst_warehouse(report, n).into_iter().map(|t| t.index).collect();
+    let written = record_warehouse(setup, controller, report, seed, &worst, dir)?;
+    report.recorded = relative(&written, report_dir);
+    Ok(written)
+}
+
+/// Runs the episodes `indices` of `report` (an [`evaluate_warehouse`] with `seed`) again,
+/// recorded, into `dir` as `<start phase>_<index>.rec`; a rerun that ends differently is an
+/// error. Returns the files written.
+pub fn record_warehouse(
+    setup: &Arc<MetaSetup>,
+    controller: &dyn Controller,
+    report: &WarehouseReport,
+    seed: u64,
+    indices: &[usize],
+    dir: &Path,
+) -> Result<Vec<PathBuf>> {
     let mut written = Vec::new();
-    for t in &worst {
+    for t in indices.iter().filter_map(|&i| report.trials.iter().find(|t| t.index == i)) {
         let title = format!(
             "warehouse, episode {} from {} (seed {seed}): {} phase{}",
             t.index,
@@ -330,7 +346,6 @@ pub fn save_worst_warehouse(
         let rec = rec.ok_or_else(|| MetaError::Invalid("the rerun was not recorded".into()))?;
         written.push(save_recording(rec, dir, &format!("{}_{}.rec", t.start_phase.to_lowercase(), t.index))?);
     }
-    report.recorded = relative(&written, report_dir);
     Ok(written)
 }
 
@@ -343,7 +358,7 @@ fn save_recording(rec: Recording, dir: &Path, name: &str) -> Result<PathBuf> {
 }
 
 /// `files` relative to `base` where they lie under it, else as given.
-fn relative(files: &[PathBuf], base: &Path) -> Vec<String> {
+pub fn relative(files: &[PathBuf], base: &Path) -> Vec<String> {
     files.iter().map(|f| f.strip_prefix(base).unwrap_or(f).display().to_string()).collect()
 }
 
@@ -582,9 +597,25 @@ pub fn save_worst_toss(
     dir: &Path,
     report_dir: &Path,
 ) -> Result<Vec<PathBuf>> {
-    let worst: Vec<TossTrial> = worst_toss(report, n).into_iter().cloned().collect();
+    let worst: Vec<usize> = worst_toss(report, n).into_iter().map(|t| t.index).collect();
+    let written = record_toss(setup, controller, report, seed, &worst, dir)?;
+    report.recorded = relative(&written, report_dir);
+    Ok(written)
+}
+
+/// Throws the throws `indices` of `report` (an [`evaluate_toss`] with `seed`) again, recorded,
+/// into `dir` as `throw_<index>.rec`; a rerun that ends differently is an error. Returns the
+/// files written.
+pub fn record_toss(
+    setup: &Arc<MetaSetup>,
+    controller: &dyn Controller,
+    report: &TossReport,
+    seed: u64,
+    indices: &[usize],
+    dir: &Path,
+) -> Result<Vec<PathBuf>> {
     let mut written = Vec::new();
-    for t in &worst {
+    for t in indices.iter().filter_map(|&i| report.throws.iter().find(|t| t.index == i)) {
         let title =
             format!("toss, throw {} (seed {seed}): v_x {:.2} m/s, lateral {:.2} m/s", t.index, t.v_x, t.lateral);
         let over = EpisodeOverride { throw: Some((t.v_x, t.lateral)), ..Default::default() };
@@ -599,7 +630,6 @@ pub fn save_worst_toss(
         let rec = rec.ok_or_else(|| MetaError::Invalid("the rerun was not recorded".into()))?;
         written.push(save_recording(rec, dir, &format!("throw_{}.rec", t.index))?);
     }
-    report.recorded = relative(&written, report_dir);
     Ok(written)
 }
 

@@ -6,7 +6,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use anyhow::{Result, bail};
-use repertoire_meta::evaluation::{EvalPlan, TaskReport, Worst, evaluate_task};
+use repertoire_meta::evaluation::{EvalPlan, Pick, TaskReport, Worst, evaluate_task};
 use repertoire_meta::tasks::task_eval::StartGrid;
 use repertoire_meta::{MetaSetup, TaskSpec};
 
@@ -56,6 +56,11 @@ pub struct EvalArgs {
     /// phases, the toss's uncaught throws, then the lowest return; 0 records none.
     #[arg(long, default_value_t = 3)]
     worst: usize,
+    /// Also record other episodes into <out>/successes/ or <out>/random/: `successes:N` (seated;
+    /// the warehouse's most phases; the toss's catches) or `random:N` (drawn with the seed).
+    /// Repeat for both.
+    #[arg(long, value_parser = parse_pick)]
+    record: Vec<Pick>,
     /// Evaluate a high level trained through this latent model (overrides the scenario's
     /// `low_level`).
     #[arg(long)]
@@ -116,17 +121,30 @@ pub fn eval(a: EvalArgs) -> Result<()> {
     let plan = a.plan(&setup, &loaded.choice);
     let out = a.out.clone().unwrap_or_else(|| loaded.default_out(&setup));
     println!("{}\n", loaded.describe()?);
-    evaluate_and_report(&setup, &loaded, &plan, Worst::Overall(a.worst), &out)?;
+    evaluate_and_report(&setup, &loaded, &plan, (Worst::Overall(a.worst), &a.record), &out)?;
     Ok(())
 }
 
-/// Evaluates `loaded` as `plan` says, records the `worst` episodes, prints the report and
-/// writes it into `out` (the report first, so a recording that fails loses no evaluation).
+/// `successes:N` or `random:N` of `--record`.
+fn parse_pick(s: &str) -> std::result::Result<Pick, String> {
+    let bad = || format!("`{s}`: expected successes:N or random:N (N episodes)");
+    let (kind, n) = s.split_once(':').ok_or_else(bad)?;
+    let n: usize = n.parse().map_err(|_| bad())?;
+    match kind {
+        "successes" => Ok(Pick::Successes(n)),
+        "random" => Ok(Pick::Random(n)),
+        _ => Err(bad()),
+    }
+}
+
+/// Evaluates `loaded` as `plan` says, records the `worst` episodes and those `picks` choose,
+/// prints the report and writes it into `out` (the report first, so a recording that fails
+/// loses no evaluation).
 pub fn evaluate_and_report(
     setup: &Arc<MetaSetup>,
     loaded: &Loaded,
     plan: &EvalPlan,
-    worst: Worst,
+    (worst, picks): (Worst, &[Pick]),
     out: &Path,
 ) -> Result<TaskReport> {
     let controller = loaded.controller()?;
@@ -148,6 +166,12 @@ pub fn evaluate_and_report(
             out.join("worst").display(),
             out.display()
         );
+    }
+    for &pick in picks {
+        let recs = report.record_picked(setup, controller.as_ref(), plan, pick, out)?;
+        crate::cli::replay::pages_beside(&recs);
+        let dir = out.join(pick.folder());
+        println!("{} {} episodes recorded in {}", recs.len(), pick.folder(), dir.display());
     }
     Ok(report)
 }
