@@ -4,6 +4,7 @@ mod common;
 
 use common::{temp_dir, write};
 use rand::SeedableRng;
+use repertoire::scenes::error::FileError;
 use repertoire::scenes::{BodyDef, Location, ScenarioFile, SceneError, WorldModel};
 
 fn load(dir: &std::path::Path, text: &str) -> Result<WorldModel, SceneError> {
@@ -15,7 +16,9 @@ fn load(dir: &std::path::Path, text: &str) -> Result<WorldModel, SceneError> {
 fn ron_syntax_error_names_file_line_and_column() {
     let dir = temp_dir("syntax");
     let err = load(&dir, "Scenario(\n    name: \"x\",\n    props: [Chair(name: \"c\"\n)").err().unwrap();
-    let SceneError::Ron { file, loc, .. } = &err else { panic!("expected a RON error, got {err}") };
+    let SceneError::File(FileError::Ron { path: file, loc, .. }) = &err else {
+        panic!("expected a RON error, got {err}")
+    };
     assert!(file.ends_with("scene.ron"));
     assert!(loc.line >= 3, "{err}");
     assert!(err.to_string().starts_with(&format!("{}:", file.display())), "{err}");
@@ -29,7 +32,7 @@ fn unknown_field_is_rejected_with_its_name_and_place() {
     let msg = err.to_string();
     assert!(msg.contains("unknown field `turbo`"), "{msg}");
     assert!(msg.contains("physics_hz"), "lists the expected fields: {msg}");
-    let SceneError::Ron { loc, .. } = err else { panic!() };
+    let SceneError::File(FileError::Ron { loc, .. }) = err else { panic!() };
     assert_eq!(loc.line, 3, "{msg}");
 }
 
@@ -254,7 +257,7 @@ fn a_body_map_naming_a_missing_joint_is_rejected() {
 fn missing_files_are_named() {
     let dir = temp_dir("missing");
     let err = ScenarioFile::load(dir.join("nope.ron")).err().unwrap();
-    assert!(matches!(err, SceneError::Io { .. }) && err.to_string().contains("nope.ron"), "{err}");
+    assert!(matches!(err, SceneError::File(FileError::Io { .. })) && err.to_string().contains("nope.ron"), "{err}");
     let msg = load(&dir, BODY_SCENE).err().unwrap().to_string();
     assert!(msg.contains("body.xml") && msg.contains("cannot read"), "{msg}");
 }

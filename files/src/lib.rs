@@ -9,6 +9,9 @@
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
+mod text;
+pub use text::{FileError, Location, at, parse_ron, read_text, ron_message};
+
 /// A write that failed: the file it was for, what was being done, and why.
 #[derive(Debug, thiserror::Error)]
 #[error("{}: {action}: {source}", path.display())]

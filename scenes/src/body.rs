@@ -128,8 +128,7 @@ impl BodyDef {
 
     /// Reads a user's MJCF body and its RON map.
     pub fn load(mjcf_path: &Path, map_path: &Path) -> Result<Self> {
-        let read =
-            |p: &Path| std::fs::read_to_string(p).map_err(|source| SceneError::Io { file: p.to_path_buf(), source });
+        let read = |p: &Path| std::fs::read_to_string(p).map_err(|source| SceneError::unreadable(p, source));
         let mjcf = read(mjcf_path)?;
         let map_text = read(map_path)?;
         let map = parse_map(map_path, &map_text)?;
@@ -219,10 +218,7 @@ impl BodyDef {
 }
 
 fn parse_map(path: &Path, text: &str) -> Result<BodyMap> {
-    ron::Options::default()
-        .with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME)
-        .from_str(text)
-        .map_err(|e| SceneError::from_ron(path, e))
+    Ok(repertoire_files::parse_ron(path, text)?)
 }
 
 /// Compiles an MJCF document, passing MuJoCo's own message on when it refuses.

@@ -488,7 +488,7 @@ impl Recording {
     /// Reads a recording; a file that is not one, is cut short, corrupt or inconsistent is
     /// refused with the file and what is wrong named.
     pub fn load(path: &Path) -> Result<Recording> {
-        let bytes = std::fs::read(path).map_err(|source| SceneError::Io { file: path.to_path_buf(), source })?;
+        let bytes = std::fs::read(path).map_err(|source| SceneError::unreadable(path, source))?;
         Self::from_bytes(&bytes).map_err(|m| corrupt(path, m))
     }
 

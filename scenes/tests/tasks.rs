@@ -3,6 +3,7 @@
 
 use rand::SeedableRng;
 use rand::rngs::StdRng;
+use repertoire_scenes::error::FileError;
 use repertoire_scenes::scenario::{SitApproach, SitFall, SpotAround, Task, WarehousePhase};
 use repertoire_scenes::{Feature, Location, ObservationLayout, ScenarioFile, SceneError, World, WorldModel};
 use std::path::{Path, PathBuf};
@@ -108,7 +109,7 @@ fn malformed_task_sections_are_located_and_explained() {
         assert!(msg.starts_with("task.ron:"), "names the file: {msg}");
         assert!(msg.contains(expect), "{task}\n→ {msg}");
         let loc = match &err {
-            SceneError::Ron { loc, .. } => Some(*loc),
+            SceneError::File(FileError::Ron { loc, .. }) => Some(*loc),
             SceneError::Invalid { loc, .. } => *loc,
             other => panic!("{other:?}"),
         };
@@ -160,7 +161,7 @@ fn prop_bindings_parse_and_bad_ones_are_located() {
         let msg = err.to_string();
         assert!(msg.starts_with("task.ron:") && msg.contains(expect), "{bind}\n→ {msg}");
         let loc = match &err {
-            SceneError::Ron { loc, .. } => Some(*loc),
+            SceneError::File(FileError::Ron { loc, .. }) => Some(*loc),
             SceneError::Invalid { loc, .. } => *loc,
             other => panic!("{other:?}"),
         };

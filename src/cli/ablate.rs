@@ -166,11 +166,7 @@ pub enum How {
 /// its chart.
 pub fn run(spec: &Path, out: &Path, overrides: &Overrides, how: How) -> Result<()> {
     let plan_only = matches!(how, How::PlanOnly);
-    let text = std::fs::read_to_string(spec).with_context(|| format!("reading {}", spec.display()))?;
-    let ab: Ablation = ron::Options::default()
-        .with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME)
-        .from_str(&text)
-        .map_err(|e| anyhow::anyhow!("{}:{}:{}: {}", spec.display(), e.span.start.line, e.span.start.col, e.code))?;
+    let ab: Ablation = repertoire_files::parse_ron(spec, &repertoire_files::read_text(spec)?)?;
     let mut ab = ab;
     if !overrides.seeds.is_empty() {
         ab.seeds = overrides.seeds.clone();

@@ -2,54 +2,26 @@
 //! name or frame) that is wrong, e.g. `maps/cmu.ron:12:15: source joint `lfemurx` is not in
 //! 16_15_walk.bvh (joints: pelvis, lfemur, …)`.
 
-use repertoire_scenes::Location;
+use repertoire_files::{FileError, Location, at};
 use std::fmt;
 use std::path::{Path, PathBuf};
-
-/// `file:line:col` when the location is known, else `file`.
-pub(crate) struct At<'a>(pub &'a Path, pub &'a Option<Location>);
-
-impl fmt::Display for At<'_> {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self.1 {
-            Some(l) => write!(f, "{}:{l}", self.0.display()),
-            None => write!(f, "{}", self.0.display()),
-        }
-    }
-}
 
 /// Everything that can go wrong between a clip file and a retargeted, validated clip.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum ClipError {
-    /// A file could not be read or written.
-    #[error("{}: {action}: {source}", file.display())]
-    Io {
-        /// The file.
-        file: PathBuf,
-        /// What was being done (`cannot read`, `cannot write`, ...).
-        action: &'static str,
-        /// The I/O error.
-        source: std::io::Error,
-    },
+    /// A file could not be read or written, or a RON file (retarget map, keyframes, clip
+    /// metadata) is malformed.
+    #[error(transparent)]
+    File(#[from] FileError),
     /// A motion-capture file could not be parsed (the message names file, line and column).
     #[error(transparent)]
     Mocap(#[from] repertoire_mocap::Error),
     /// The target body could not be loaded or compiled.
     #[error(transparent)]
     Scene(#[from] repertoire_scenes::SceneError),
-    /// A RON file (retarget map, keyframes, clip metadata) is malformed.
-    #[error("{}: {message}", At(file, &Some(*loc)))]
-    Ron {
-        /// The file.
-        file: PathBuf,
-        /// Where the parser stopped.
-        loc: Location,
-        /// What is wrong.
-        message: String,
-    },
     /// A retarget map that does not fit the source skeleton or the target body.
-    #[error("{}: {message}", At(file, loc))]
+    #[error("{}: {message}", at(file, loc))]
     Map {
         /// The map file.
         file: PathBuf,
@@ -59,7 +31,7 @@ pub enum ClipError {
         message: String,
     },
     /// A keyframe clip that parses but names unknown joints or has bad times.
-    #[error("{}: {message}", At(file, loc))]
+    #[error("{}: {message}", at(file, loc))]
     Keyframes {
         /// The keyframe file.
         file: PathBuf,
@@ -84,19 +56,13 @@ pub enum ClipError {
 }
 
 impl ClipError {
-    /// Wraps a RON parse error of `file`.
-    pub(crate) fn from_ron(file: &Path, err: ron::error::SpannedError) -> Self {
-        let loc = Location { line: err.span.start.line, col: err.span.start.col };
-        ClipError::Ron { file: file.to_path_buf(), loc, message: repertoire_scenes::error::ron_message(&err.code) }
-    }
-
     /// An unusable-clip error.
     pub(crate) fn unusable(origin: impl fmt::Display, message: impl Into<String>) -> Self {
         ClipError::Unusable { origin: origin.to_string(), message: message.into() }
     }
 
     pub(crate) fn io(file: &Path, action: &'static str, source: std::io::Error) -> Self {
-        ClipError::Io { file: file.to_path_buf(), action, source }
+        ClipError::File(FileError::io(file, action, source))
     }
 }
 

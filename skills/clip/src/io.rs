@@ -130,10 +130,7 @@ impl Clip {
 }
 
 fn parse<T: serde::de::DeserializeOwned>(path: &Path, text: &str) -> Result<T> {
-    ron::Options::default()
-        .with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME)
-        .from_str(text)
-        .map_err(|e| ClipError::from_ron(path, e))
+    Ok(repertoire_files::parse_ron(path, text)?)
 }
 
 fn to_ron<T: Serialize>(path: &Path, value: &T) -> Result<String> {

@@ -104,10 +104,7 @@ impl LoadedKeyframes {
 
     /// Parses keyframe text (`path` for messages).
     pub fn parse(path: &Path, text: String) -> Result<Self> {
-        let clip: KeyframeClip = ron::Options::default()
-            .with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME)
-            .from_str(&text)
-            .map_err(|e| ClipError::from_ron(path, e))?;
+        let clip: KeyframeClip = repertoire_files::parse_ron(path, &text)?;
         Ok(LoadedKeyframes { clip, path: path.to_path_buf(), text })
     }
 

@@ -222,10 +222,7 @@ impl LoadedMap {
 
     /// Parses map text; `path` is used in messages.
     pub fn parse(path: &Path, text: String) -> Result<Self> {
-        let map: RetargetMap = ron::Options::default()
-            .with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME)
-            .from_str(&text)
-            .map_err(|e| ClipError::from_ron(path, e))?;
+        let map: RetargetMap = repertoire_files::parse_ron(path, &text)?;
         let loaded = LoadedMap { map, path: path.to_path_buf(), text };
         loaded.check_shape()?;
         Ok(loaded)

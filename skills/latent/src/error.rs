@@ -5,28 +5,9 @@ use std::path::{Path, PathBuf};
 /// What went wrong with a dataset, a latent model or their inputs.
 #[derive(Debug, thiserror::Error)]
 pub enum LatentError {
-    /// A file could not be read or written.
-    #[error("{}: {what}: {source}", path.display())]
-    Io {
-        /// The file.
-        path: PathBuf,
-        /// What was being done.
-        what: &'static str,
-        /// The OS error.
-        source: std::io::Error,
-    },
-    /// A RON manifest did not parse.
-    #[error("{}:{line}:{col}: {message}", file.display())]
-    Ron {
-        /// The file.
-        file: PathBuf,
-        /// 1-based line.
-        line: usize,
-        /// 1-based column.
-        col: usize,
-        /// What the parser said.
-        message: String,
-    },
+    /// A file could not be read or written, or a RON file did not parse.
+    #[error(transparent)]
+    File(#[from] repertoire_files::FileError),
     /// A file is damaged or does not agree with its manifest.
     #[error("{}: {reason}", path.display())]
     Corrupt {
@@ -57,17 +38,12 @@ pub enum LatentError {
 impl LatentError {
     /// An I/O error on `path`.
     pub fn io(path: &Path, what: &'static str, source: std::io::Error) -> Self {
-        LatentError::Io { path: path.to_path_buf(), what, source }
+        LatentError::File(repertoire_files::FileError::io(path, what, source))
     }
 
     /// A RON error in `file`.
     pub fn ron(file: &Path, err: ron::error::SpannedError) -> Self {
-        LatentError::Ron {
-            file: file.to_path_buf(),
-            line: err.span.start.line,
-            col: err.span.start.col,
-            message: err.code.to_string(),
-        }
+        LatentError::File(repertoire_files::FileError::ron(file, err))
     }
 
     /// A damaged file.

@@ -203,7 +203,11 @@ fn collect_writes_a_dataset_that_reloads_and_refuses_damage() {
     let text = std::fs::read_to_string(dir.join("dataset.ron")).unwrap();
     std::fs::write(bad.join("dataset.ron"), &text[..text.len() / 3]).unwrap();
     let err = Dataset::load(&bad).expect_err("a cut manifest is refused");
-    assert!(matches!(err, LatentError::Ron { .. }) && err.to_string().contains("dataset.ron:"), "{err}");
+    assert!(
+        matches!(err, LatentError::File(repertoire_files::FileError::Ron { .. }))
+            && err.to_string().contains("dataset.ron:"),
+        "{err}"
+    );
     let with_prop = text.replacen("FootContacts,", "FootContacts,\n            PropPose(\"chair\"),", 1);
     assert_ne!(with_prop, text);
     std::fs::write(bad.join("dataset.ron"), with_prop).unwrap();

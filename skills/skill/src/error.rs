@@ -8,28 +8,9 @@ use repertoire_scenes::SceneError;
 /// What went wrong with a skill.
 #[derive(Debug, thiserror::Error)]
 pub enum SkillError {
-    /// A file could not be read or written.
-    #[error("{}: {what}: {source}", path.display())]
-    Io {
-        /// The file.
-        path: PathBuf,
-        /// What was being done.
-        what: &'static str,
-        /// The OS error.
-        source: std::io::Error,
-    },
-    /// A RON file did not parse.
-    #[error("{}:{line}:{col}: {message}", file.display())]
-    Ron {
-        /// The file.
-        file: PathBuf,
-        /// 1-based line.
-        line: usize,
-        /// 1-based column.
-        col: usize,
-        /// What the parser said.
-        message: String,
-    },
+    /// A file could not be read or written, or a RON file did not parse.
+    #[error(transparent)]
+    File(#[from] repertoire_files::FileError),
     /// A spec, library entry or argument is inconsistent.
     #[error("{0}")]
     Invalid(String),
@@ -55,17 +36,12 @@ pub enum SkillError {
 impl SkillError {
     /// An I/O error on `path`.
     pub fn io(path: &Path, what: &'static str, source: std::io::Error) -> Self {
-        SkillError::Io { path: path.to_path_buf(), what, source }
+        SkillError::File(repertoire_files::FileError::io(path, what, source))
     }
 
     /// A RON error in `file`.
     pub fn ron(file: &Path, err: ron::error::SpannedError) -> Self {
-        SkillError::Ron {
-            file: file.to_path_buf(),
-            line: err.span.start.line,
-            col: err.span.start.col,
-            message: err.code.to_string(),
-        }
+        SkillError::File(repertoire_files::FileError::ron(file, err))
     }
 }
 

@@ -580,10 +580,7 @@ impl SpecFile {
 
     /// Parses and checks spec text; `path` is used in messages and for relative paths.
     pub fn parse(path: &Path, text: &str) -> Result<Self> {
-        let spec: SkillSpec = ron::Options::default()
-            .with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME)
-            .from_str(text)
-            .map_err(|e| SkillError::ron(path, e))?;
+        let spec: SkillSpec = repertoire_files::parse_ron(path, text)?;
         let bad = |m: String| Err(SkillError::Invalid(format!("{}: {m}", path.display())));
         if let Some(problem) = repertoire_scenes::scenario::skill_name_problem(&spec.name) {
             return bad(problem);
