@@ -4,47 +4,20 @@
 // - the canvas is drawn (the screenshot of the 3-D view has many distinct colours);
 // - playback advances (window.__replay.frame moves on while playing);
 // - for each FRAME TEXT pair, the overlay shows TEXT once the slider is moved to FRAME.
-// Uses playwright-core from scenes/web/node_modules (scripts/setup.sh) and /usr/bin/chromium
-// (or $CHROMIUM). Prints one JSON line of measurements; exits 1 with the reason on failure.
+// - the timeline: slider and skill strip aligned, every legend entry shown, a fall in red.
+// Opens Chromium through scenes/web/chromium.mjs. Prints one JSON line of measurements; exits 1
+// with the reason on failure.
 
-import { createRequire } from 'node:module';
-import { existsSync, mkdtempSync, rmSync } from 'node:fs';
-import { tmpdir } from 'node:os';
-import { dirname, join, resolve } from 'node:path';
-import { fileURLToPath, pathToFileURL } from 'node:url';
+import { resolve } from 'node:path';
+import { pathToFileURL } from 'node:url';
+import { open } from '../../scenes/web/chromium.mjs';
 
-const here = dirname(fileURLToPath(import.meta.url));
-const web = resolve(here, '../../scenes/web');
 const [page_path, shot_path, ...expect] = process.argv.slice(2);
 if (!page_path || !shot_path || expect.length % 2) {
   console.error('usage: node replay_check.mjs PAGE.html SCREENSHOT.png [FRAME TEXT]...');
   process.exit(2);
 }
-const chromium_path = process.env.CHROMIUM || '/usr/bin/chromium';
-if (!existsSync(chromium_path)) {
-  console.error(`${chromium_path} is missing: run scripts/setup.sh (it installs Debian's chromium)`);
-  process.exit(1);
-}
-let playwright;
-try {
-  playwright = createRequire(join(web, 'package.json'))('playwright-core');
-} catch (e) {
-  console.error(`playwright-core is not installed in ${web}/node_modules: run scripts/setup.sh (${e.message})`);
-  process.exit(1);
-}
-
-const profile = mkdtempSync(join(tmpdir(), 'replay-chromium-'));
-// A fresh, empty profile; without the background-networking flags Chromium stalls on a
-// closed network.
-const browser = await playwright.chromium.launchPersistentContext(profile, {
-  executablePath: chromium_path,
-  headless: true,
-  viewport: { width: 1280, height: 720 },
-  args: [
-    '--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run', '--disable-background-networking',
-    '--disable-component-update', '--disable-sync', '--use-angle=swiftshader', '--enable-unsafe-swiftshader',
-  ],
-});
+const { browser, close } = await open();
 const problems = [];
 let result = {};
 try {
@@ -147,8 +120,7 @@ try {
 } catch (e) {
   problems.push(`${e.message}`);
 } finally {
-  await browser.close();
-  rmSync(profile, { recursive: true, force: true });
+  await close();
 }
 console.log(JSON.stringify(result));
 if (problems.length) {

@@ -332,6 +332,21 @@ window.addEventListener('resize', resize);
 resize();
 
 const rootTarget = new THREE.Vector3();
+// The pelvis of frame `f` (at least 0.5 m up, so a fallen body stays in view) into `v`.
+function pelvisAt(f, v) {
+  const k = (f * NB + H.root) * P;
+  v.set(poses[k], poses[k + 1], Math.max(0.5, poses[k + 2]));
+}
+// The camera on the orbit around its target.
+function aimCamera() {
+  const ce = Math.cos(orbit.elevation);
+  camera.position.set(
+    orbit.target.x + orbit.distance * ce * Math.cos(orbit.azimuth),
+    orbit.target.y + orbit.distance * ce * Math.sin(orbit.azimuth),
+    orbit.target.z + orbit.distance * Math.sin(orbit.elevation),
+  );
+  camera.lookAt(orbit.target);
+}
 let last = performance.now();
 let shown = -1;
 function frameLoop(now) {
@@ -350,17 +365,10 @@ function frameLoop(now) {
     shown = f;
   }
   drawStrip(f);
-  const k = (f * NB + H.root) * P;
-  rootTarget.set(poses[k], poses[k + 1], Math.max(0.5, poses[k + 2]));
+  pelvisAt(f, rootTarget);
   // Ease towards the pelvis at the same pace whatever the frame rate; jump on the first draw.
   if (follow) orbit.target.lerp(rootTarget, hook.drawn > 0 ? 1 - Math.exp(-8 * dt) : 1);
-  const ce = Math.cos(orbit.elevation);
-  camera.position.set(
-    orbit.target.x + orbit.distance * ce * Math.cos(orbit.azimuth),
-    orbit.target.y + orbit.distance * ce * Math.sin(orbit.azimuth),
-    orbit.target.z + orbit.distance * Math.sin(orbit.elevation),
-  );
-  camera.lookAt(orbit.target);
+  aimCamera();
   renderer.render(scene, camera);
   hook.frame = f;
   hook.frames = N;
@@ -392,15 +400,8 @@ hook.filmstrip = (count, view, columns, tileW, tileH) => {
   for (let i = 0; i < n; i++) {
     const f = n === 1 ? 0 : Math.round((i * (N - 1)) / (n - 1));
     placeFrame(f);
-    const k = (f * NB + H.root) * P;
-    orbit.target.set(poses[k], poses[k + 1], Math.max(0.5, poses[k + 2]));
-    const ce = Math.cos(orbit.elevation);
-    camera.position.set(
-      orbit.target.x + orbit.distance * ce * Math.cos(orbit.azimuth),
-      orbit.target.y + orbit.distance * ce * Math.sin(orbit.azimuth),
-      orbit.target.z + orbit.distance * Math.sin(orbit.elevation),
-    );
-    camera.lookAt(orbit.target);
+    pelvisAt(f, orbit.target);
+    aimCamera();
     renderer.render(scene, camera);
     const x = (i % cols) * tileW, y = Math.floor(i / cols) * (tileH + caption);
     ctx.drawImage(renderer.domElement, x, y, tileW, tileH);
