@@ -45,8 +45,9 @@ pub const GRIP_ACTUATORS: [&str; 2] = ["repertoire/grip/left", "repertoire/grip/
 /// Number of wall segments of a bucket.
 pub const BUCKET_WALLS: usize = 12;
 
-/// Builds the scene MJCF for `scenario` around `body`.
-pub fn scene_mjcf(body: &BodyDef, scenario: &Scenario) -> Result<String> {
+/// Builds the scene MJCF for `scenario` around `body`; `own_ground`: the body's file brings its
+/// own ground plane ([`ground_plane`] of the body compiled alone), so the scene adds no floor.
+pub fn scene_mjcf(body: &BodyDef, scenario: &Scenario, own_ground: bool) -> Result<String> {
     let close = body
         .mjcf
         .rfind("</mujoco>")
@@ -69,7 +70,7 @@ pub fn scene_mjcf(body: &BodyDef, scenario: &Scenario) -> Result<String> {
     );
     // A body file that brings its own ground plane (gymnasium's humanoid does) stands on it; a
     // second plane under it would double every foot contact.
-    if ground_plane(&crate::body::compile(&body.mjcf, &body.mjcf_path)?).is_none() {
+    if !own_ground {
         let _ = writeln!(
             out,
             r#"    <geom name="floor" type="plane" size="0 0 0.05" material="repertoire_grid" rgba="1 1 1 1" {CONTACT}/>"#

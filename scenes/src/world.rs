@@ -155,8 +155,8 @@ impl WorldModel {
             BodySource::Humanoid => BodyDef::humanoid(),
             BodySource::Mjcf { file, map } => BodyDef::load(&scenario.resolve(file), &scenario.resolve(map))?,
         };
-        body.check()?;
-        let mjcf = scene_mjcf(&body, &scenario.scenario)?;
+        let (alone, _) = body.check()?;
+        let mjcf = scene_mjcf(&body, &scenario.scenario, crate::compose::ground_plane(&alone).is_some())?;
         let mut model = compile(&mjcf, &scenario.path)?;
         let pd_motors = crate::body::drive_motors_as_pd(&mut model, &body)?;
         let index = BodyIndex::resolve(&model, &body)?;
