@@ -97,6 +97,27 @@ py="$(command -v python3 || command -v python || true)"
 tmp="$(mktemp -d)"
 trap 'rm -rf "$tmp"' EXIT
 
+# put(out, dest, data, digest, source): writes data to out/dest once its SHA-256 is the one
+# expected; shared by the Python steps below (they import it from $tmp).
+cat >"$tmp/checked.py" <<'PY'
+import hashlib, sys
+def put(out, dest, data, digest, source):
+    got = hashlib.sha256(data).hexdigest()
+    if got != digest:
+        sys.exit(f"setup: {source} has SHA-256 {got}, expected {digest}")
+    path = out / dest
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(data)
+PY
+
+# Moves a filled folder into place last, so an interrupted run never leaves it half filled.
+into_place() {
+  rm -rf "$2"
+  mkdir -p "$(dirname "$2")"
+  mv "$1" "$2"
+  touch "$2/.complete"
+}
+
 if [ ! -f "$lib" ] || [ ! -L "$lib_dir/libmujoco.so" ]; then
   echo "setup: fetching MuJoCo $MUJOCO_VERSION from PyPI (wheel 'mujoco==$MUJOCO_VERSION')" >&2
   # The shared library inside is the same for every CPython tag, so any wheel for this platform serves.
@@ -129,8 +150,10 @@ if [ ! -f "$clips_dir/.complete" ]; then
     --platform manylinux2014_x86_64 --dest "$tmp/pybullet" "pybullet==3.2.7"
   "$py" -m pip download --quiet --no-deps --no-binary=:all: --dest "$tmp/bvhtoolbox" "bvhtoolbox==0.1.3"
   "$py" - "$tmp" "$tmp/clips" <<'PY'
-import glob, hashlib, pathlib, sys, tarfile, zipfile
+import glob, pathlib, sys, tarfile, zipfile
 tmp, out = pathlib.Path(sys.argv[1]), pathlib.Path(sys.argv[2])
+sys.path.insert(0, str(tmp))
+from checked import put
 motions = "pybullet_data/data/motions/"
 # destination in the pack: (archive member, SHA-256)
 wanted = {
@@ -145,30 +168,18 @@ wanted = {
 sit = ("bvh/sit_down_stand_up.bvh", "bvhtoolbox-0.1.3/tests/example_files/test_mocapbank.bvh",
        "c12f37b39d931ee0bc8b081984255587eb8983e1d1a61fa0681ca6d5ea58e348")
 
-def put(dest, data, digest, source):
-    got = hashlib.sha256(data).hexdigest()
-    if got != digest:
-        sys.exit(f"setup: {source} has SHA-256 {got}, expected {digest}")
-    path = out / dest
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_bytes(data)
-
 wheel = glob.glob(str(tmp / "pybullet" / "pybullet-3.2.7-*.whl"))[0]
 with zipfile.ZipFile(wheel) as z:
     for dest, (member, digest) in wanted.items():
-        put(dest, z.read(member), digest, f"{wheel}:{member}")
+        put(out, dest, z.read(member), digest, f"{wheel}:{member}")
 sdist = glob.glob(str(tmp / "bvhtoolbox" / "bvhtoolbox-0.1.3.tar.gz"))[0]
 with tarfile.open(sdist) as t:
     member = t.extractfile(sit[1])
     if member is None:
         sys.exit(f"setup: {sdist} has no {sit[1]}")
-    put(sit[0], member.read(), sit[2], f"{sdist}:{sit[1]}")
+    put(out, sit[0], member.read(), sit[2], f"{sdist}:{sit[1]}")
 PY
-  # Move into place last, so an interrupted run never leaves a half-filled pack behind.
-  rm -rf "$clips_dir"
-  mkdir -p "$root/third_party"
-  mv "$tmp/clips" "$clips_dir"
-  touch "$clips_dir/.complete"
+  into_place "$tmp/clips" "$clips_dir"
   echo "setup: clip pack installed in third_party/clips" >&2
 fi
 
@@ -176,8 +187,10 @@ if [ ! -f "$bodies_dir/.complete" ]; then
   echo "setup: fetching third-party bodies (wheel 'gymnasium==1.4.0')" >&2
   "$py" -m pip download --quiet --no-deps --only-binary=:all: --dest "$tmp/gymnasium" "gymnasium==1.4.0"
   "$py" - "$tmp" "$tmp/bodies" <<'PY'
-import glob, hashlib, pathlib, sys, zipfile
+import glob, pathlib, sys, zipfile
 tmp, out = pathlib.Path(sys.argv[1]), pathlib.Path(sys.argv[2])
+sys.path.insert(0, str(tmp))
+from checked import put
 # destination: (wheel glob, archive member, SHA-256)
 wanted = {
     "gymnasium/humanoid.xml": ("gymnasium/gymnasium-1.4.0-*.whl", "gymnasium/envs/mujoco/assets/humanoid.xml",
@@ -186,18 +199,9 @@ wanted = {
 for dest, (pattern, member, digest) in wanted.items():
     wheel = glob.glob(str(tmp / pattern))[0]
     with zipfile.ZipFile(wheel) as z:
-        data = z.read(member)
-    got = hashlib.sha256(data).hexdigest()
-    if got != digest:
-        sys.exit(f"setup: {wheel}:{member} has SHA-256 {got}, expected {digest}")
-    path = out / dest
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_bytes(data)
+        put(out, dest, z.read(member), digest, f"{wheel}:{member}")
 PY
-  rm -rf "$bodies_dir"
-  mkdir -p "$root/third_party"
-  mv "$tmp/bodies" "$bodies_dir"
-  touch "$bodies_dir/.complete"
+  into_place "$tmp/bodies" "$bodies_dir"
   echo "setup: third-party bodies installed in third_party/bodies" >&2
 fi
 
