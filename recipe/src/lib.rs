@@ -500,7 +500,10 @@ fn stage_of(
                 ));
             }
             let args = c.args.iter().map(|a| f(a)).collect::<std::result::Result<Vec<_>, _>>()?;
-            for a in &args {
+            // The command's words (`meta train`) name no input, even where a folder of the same
+            // name lies beside the recipe (the `meta` crate of this repository).
+            let words = args.iter().take_while(|a| is_command_word(a)).count();
+            for a in &args[words..] {
                 for p in path_parts(a) {
                     if p.starts_with(work) {
                         stage.names.push(p);
@@ -610,6 +613,11 @@ pub(crate) fn fill(
 
 /// The paths an argument may name: itself, its comma-separated parts, and the value of a
 /// `--flag=value`.
+/// A subcommand's name (`meta`, `finetune`): lowercase letters and `-`, not a flag.
+fn is_command_word(arg: &str) -> bool {
+    !arg.is_empty() && !arg.starts_with('-') && arg.chars().all(|c| c.is_ascii_lowercase() || c == '-')
+}
+
 fn path_parts(arg: &str) -> Vec<PathBuf> {
     let value = match arg.strip_prefix("--") {
         Some(flag) => match flag.split_once('=') {
@@ -669,6 +677,19 @@ mod tests {
         assert_eq!(p.ancestors(6), [0, 1, 3, 5]);
         assert_eq!(p.direct(5), [3], "drawn: round 2 after round 1, which comes after the rest");
         assert_eq!(p.graph().edge_count(), 5);
+    }
+
+    #[test]
+    fn the_command_words_are_not_inputs_even_where_a_folder_has_their_name() {
+        // Tests run in the crate's folder, which has `src` and `Cargo.toml`.
+        let p = plan(
+            r#"(work: "w", stages: [Run(name: "a", args: ["src", "eval", "Cargo.toml", "--out", "{work}/a"], writes: ["{work}/a"])])"#,
+        )
+        .unwrap();
+        assert_eq!(p.stages[0].sources, [PathBuf::from("Cargo.toml")]);
+        let p =
+            plan(r#"(work: "w", stages: [Run(name: "a", args: ["x", "--in", "src"], writes: ["{work}/a"])])"#).unwrap();
+        assert_eq!(p.stages[0].sources, [PathBuf::from("src")], "after the command's words, a folder is an input");
     }
 
     #[test]

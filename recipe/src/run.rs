@@ -205,6 +205,24 @@ impl<'a> Runner<'a> {
         Ok(decided)
     }
 
+    /// Keeps what stage `i` (settled) made for its current inputs (`recipe adopt`): a record
+    /// that finished, or started (it goes on from its checkpoint), with another identity is given
+    /// the current one, the old one kept in `adopted`. For a change that does not change what the
+    /// stage makes (code tidied, a file moved), after checking it does. Returns the old identity
+    /// where it changed it.
+    pub fn adopt(&mut self, i: usize) -> Result<Option<String>> {
+        let Some(id) = self.identity[i].clone() else { return Ok(None) };
+        match self.store.record(&self.plan.stages[i].id)? {
+            Some(mut r) if r.identity != id && matches!(r.status, Status::Done | Status::Started) => {
+                let old = std::mem::replace(&mut r.identity, id);
+                r.adopted.push(old.clone());
+                self.store.put(&r)?;
+                Ok(Some(old))
+            }
+            _ => Ok(None),
+        }
+    }
+
     /// Where stage `i` stands (after [`Runner::settle`]); `alive`: whether a Slurm job is still
     /// queued or running.
     pub fn standing(&self, i: usize, alive: &dyn Fn(u64) -> bool) -> Result<Standing> {
@@ -321,6 +339,7 @@ impl<'a> Runner<'a> {
             command: command.clone(),
             seconds: 0.0,
             ran: ran.to_string(),
+            adopted: Vec::new(),
         };
         self.store.put(&rec)?;
         let t = Instant::now();
@@ -606,6 +625,37 @@ mod round_tests {
         // from what round 3 left.
         assert_eq!(run("0.5,0.6,0.7,0.705", "b"), Summary { ran: 3 + 2, skipped: 1 + 3, stopped: 0 });
         assert_eq!(log(), "1b\n2b\n3b\n4b\n");
+    }
+
+    #[test]
+    fn adopting_keeps_what_the_stages_made_for_their_changed_inputs() {
+        let dir = temp("adopt");
+        let run = |tag: &str| {
+            let plan = Plan::load(&recipe(&dir, "0.5,0.6,0.605,0.9", tag), None).unwrap();
+            Runner::new(&plan, PathBuf::from("/bin/sh")).run_local().unwrap()
+        };
+        assert_eq!(run("a").ran, 7);
+        // The changed tag changes the rounds' identities; adopting them keeps what they made.
+        let plan = Plan::load(&recipe(&dir, "0.5,0.6,0.605,0.9", "b"), None).unwrap();
+        let mut r = Runner::new(&plan, PathBuf::from("/bin/sh"));
+        let mut adopted = Vec::new();
+        for i in 0..plan.stages.len() {
+            r.settle(i).unwrap();
+            if let Some(old) = r.adopt(i).unwrap() {
+                adopted.push((plan.stages[i].id.clone(), old));
+            }
+        }
+        let ids: Vec<_> = adopted.iter().map(|(s, _)| s.as_str()).collect();
+        assert_eq!(
+            ids,
+            ["loop/r1/grow", "loop/r1/eval", "loop/r2/grow", "loop/r2/eval", "loop/r3/grow", "loop/r3/eval"]
+        );
+        let rec = r.store.record("loop/r2/grow").unwrap().unwrap();
+        assert_eq!(rec.adopted, [adopted[2].1.clone()]);
+        assert_eq!(Some(rec.identity.as_str()), r.identity(3));
+        assert_eq!(run("b"), Summary { ran: 0, skipped: 7, stopped: 2 });
+        assert_eq!(std::fs::read_to_string(dir.join("work/lib/log")).unwrap(), "1a\n2a\n3a\n");
+        assert_eq!(run("c").ran, 6, "a stage not adopted runs again");
     }
 
     #[test]

@@ -200,6 +200,7 @@ pub fn submit(runner: &mut Runner, recipe_args: &[String], again: &[String], opt
             command: runner.command(i),
             seconds: 0.0,
             ran: format!("slurm job {job}"),
+            adopted: Vec::new(),
         })?;
         println!(
             "── {}: job {job}{}",

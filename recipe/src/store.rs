@@ -108,6 +108,10 @@ pub struct Record {
     /// Where it ran (`local` or `slurm job N`).
     #[serde(default)]
     pub ran: String,
+    /// The identities it had before `recipe adopt` kept what it made for the current inputs,
+    /// oldest first (none for a stage that ran with its identity).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub adopted: Vec<String>,
 }
 
 /// A recipe's store under `dir` (`{work}/.recipe`).

@@ -34,6 +34,17 @@ pub enum RecipeCommand {
         #[arg(long, requires = "slurm")]
         wait: bool,
     },
+    /// Keep what the stages made for their current inputs: each stage that finished (or
+    /// started) with another identity is given its current one, so a run skips (or resumes) it.
+    /// For a change that does not change what the stages make (code tidied, files moved), after
+    /// checking it does not; the old identities stay in the records.
+    Adopt {
+        #[command(flatten)]
+        recipe: RecipeArgs,
+        /// Adopt the stages up to this one only (`name`, or `group/rK/name`).
+        #[arg(long, value_name = "STAGE")]
+        through: Option<String>,
+    },
     /// Run one stage, with what the stages before it left (what each Slurm job runs).
     Stage {
         #[command(flatten)]
@@ -203,6 +214,28 @@ pub fn run(cmd: RecipeCommand) -> Result<()> {
                 }
                 println!("every stage of {} finished", recipe.file.display());
             }
+            Ok(())
+        }
+        RecipeCommand::Adopt { recipe, through } => {
+            let plan = Plan::load_with(&recipe.file, recipe.work.as_deref(), &recipe.vars)?;
+            let last = match &through {
+                Some(id) => plan.find(id)?,
+                None => plan.stages.len().saturating_sub(1),
+            };
+            let mut runner = Runner::new(&plan, exe);
+            let mut n = 0;
+            for i in 0..plan.stages.len().min(last + 1) {
+                runner.settle(i)?;
+                if let Some(old) = runner.adopt(i)? {
+                    n += 1;
+                    println!(
+                        "── {}: adopted (identity {old} → {})",
+                        plan.stages[i].id,
+                        runner.identity(i).unwrap_or("")
+                    );
+                }
+            }
+            println!("recipe {}: {n} stages adopted", recipe.file.display());
             Ok(())
         }
         RecipeCommand::Stage { recipe, id } => {
