@@ -6,7 +6,7 @@
 //!
 //! `--grip=X` overrides the spec's grip level (0 lets go, 1 grips; see `World::set_grip`).
 //!
-//! `cargo run --release --example object_probe -- skills/skill/specs/carry.ron [--starts=5] [--policy=skills/library] [--grip=0]`
+//! `cargo run --release --example object_probe -- specs/carry.ron [--starts=5] [--policy=library] [--grip=0]`
 
 use rand::SeedableRng;
 use repertoire_learn::env::{Env, EnvRng};
@@ -15,7 +15,7 @@ use std::path::Path;
 
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().collect();
-    let spec_path = args.get(1).map_or("skills/skill/specs/carry.ron", String::as_str);
+    let spec_path = args.get(1).map_or("specs/carry.ron", String::as_str);
     let option = |name: &str, default: usize| -> anyhow::Result<usize> {
         args.iter().find_map(|a| a.strip_prefix(name)).map_or(Ok(default), |v| Ok(v.parse()?))
     };
@@ -28,7 +28,7 @@ fn main() -> anyhow::Result<()> {
         Some(lib) => Some(repertoire_skill::library::load(Path::new(lib), &spec.spec.name)?),
         None => None,
     };
-    let setup = SkillSetup::new(spec, Path::new(policy_lib.unwrap_or("skills/library")))?;
+    let setup = SkillSetup::new(spec, Path::new(policy_lib.unwrap_or("library")))?;
     let r = &setup.settings.reference;
     let frames = r.frames();
     let mut env = setup.env();

@@ -4,7 +4,7 @@
 //! pose touches (a shin inside the chair launches the body), how far the feet dip into the
 //! floor over the clip, and how pelvis height and distance to the seat evolve until a fall.
 //!
-//! `cargo run --release --example sit_probe -- skills/skill/specs/sit.ron`
+//! `cargo run --release --example sit_probe -- specs/sit.ron`
 
 use mujoco_rs::prelude::MjtObjBase;
 use repertoire_skill::imitation::ImitationTask;
@@ -13,8 +13,8 @@ use std::path::Path;
 use std::sync::Arc;
 
 fn main() -> anyhow::Result<()> {
-    let spec = std::env::args().nth(1).unwrap_or_else(|| "skills/skill/specs/sit.ron".into());
-    let setup = SkillSetup::new(SpecFile::load(Path::new(&spec))?, Path::new("skills/library"))?;
+    let spec = std::env::args().nth(1).unwrap_or_else(|| "specs/sit.ron".into());
+    let setup = SkillSetup::new(SpecFile::load(Path::new(&spec))?, Path::new("library"))?;
     let model = Arc::clone(&setup.model);
     let chair = model.prop_id("chair");
     let r = &setup.settings.reference;

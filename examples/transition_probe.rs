@@ -5,7 +5,7 @@
 //! scaled by `--momentum=K`. It prints each start's speed and when the body falls: whether the
 //! clip alone can take the body from where its predecessors leave it.
 //!
-//! `cargo run --release --example transition_probe -- skills/skill/specs/sit.ron turn_left,turn_right [--hold0] [--blend=0.5] [--momentum=0]`
+//! `cargo run --release --example transition_probe -- specs/sit.ron turn_left,turn_right [--hold0] [--blend=0.5] [--momentum=0]`
 
 use rand::SeedableRng;
 use repertoire_learn::env::{Env, EnvRng};
@@ -15,7 +15,7 @@ use std::path::Path;
 
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().collect();
-    let spec_path = args.get(1).map_or("skills/skill/specs/sit.ron", String::as_str);
+    let spec_path = args.get(1).map_or("specs/sit.ron", String::as_str);
     let from: Vec<String> =
         args.get(2).map_or("turn_left,turn_right", String::as_str).split(',').map(String::from).collect();
     let hold0 = args.iter().any(|a| a == "--hold0");
@@ -26,7 +26,7 @@ fn main() -> anyhow::Result<()> {
 
     let mut spec = SpecFile::load(Path::new(spec_path))?;
     spec.spec.init = Init::pools(from);
-    let setup = SkillSetup::new(spec, Path::new("skills/library"))?;
+    let setup = SkillSetup::new(spec, Path::new("library"))?;
     let r = &setup.settings.reference;
     let frames = r.frames();
     let mut env = setup.env();

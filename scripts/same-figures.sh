@@ -24,14 +24,14 @@ figures() {
   r planner   meta eval --planner --trials 4 --out "$dir/planner" --worst 1
   r ready     meta readiness --trials 4 --epochs 5 --out "$dir/ready"
   r gated     meta eval --trials 20 --readiness "$dir/ready" --out "$dir/gated" --worst 1
-  r warehouse meta eval scenes/warehouse.ron --trials 20 --grid 2 --grid-trials 2 --out "$dir/warehouse" --worst 1
-  r toss      meta eval scenes/toss.ron --grid 2 --grid-trials 2 --out "$dir/toss" --worst 1
+  r warehouse meta eval scenarios/warehouse.ron --trials 20 --grid 2 --grid-trials 2 --out "$dir/warehouse" --worst 1
+  r toss      meta eval scenarios/toss.ron --grid 2 --grid-trials 2 --out "$dir/toss" --worst 1
   r run       run --trials 5 --out "$dir/run"
   r runlook   run --trials 2 --lookahead 3 --out "$dir/runlook"
-  r runware   run scenes/warehouse.ron --trials 3 --out "$dir/runware"
+  r runware   run scenarios/warehouse.ron --trials 3 --out "$dir/runware"
   r scenesit  scene check
-  r sceneware scene check scenes/warehouse.ron
-  r scenetoss scene check scenes/toss.ron
+  r sceneware scene check scenarios/warehouse.ron
+  r scenetoss scene check scenarios/toss.ron
   cp -r "$dir/sit" "$dir/sit-report" && r report report "$dir/sit-report"
   cp -r "$dir/warehouse" "$dir/ware-report" && r reportw report "$dir/ware-report"
 }

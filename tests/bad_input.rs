@@ -264,6 +264,6 @@ fn missing_files_are_named() {
 
 #[test]
 fn the_builtin_scenario_and_the_shipped_file_agree() {
-    let shipped = ScenarioFile::load(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/sit.ron")).unwrap();
+    let shipped = ScenarioFile::load(concat!(env!("CARGO_MANIFEST_DIR"), "/scenarios/sit.ron")).unwrap();
     assert_eq!(shipped.scenario, ScenarioFile::builtin_default().scenario);
 }

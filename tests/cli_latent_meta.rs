@@ -16,7 +16,7 @@ fn root() -> &'static Path {
 
 /// The built-in sitting scenario with `low_level` set to `value` (none: left out).
 fn sit_with(low_level: Option<&str>) -> String {
-    let text = std::fs::read_to_string(root().join("scenes/sit.ron")).unwrap();
+    let text = std::fs::read_to_string(root().join("scenarios/sit.ron")).unwrap();
     let end = text.rfind(')').unwrap();
     match low_level {
         Some(v) => format!("{}    low_level: {v},\n)\n", &text[..end]),
@@ -48,8 +48,8 @@ fn the_low_level_field_defaults_resolves_and_refuses_a_missing_model() {
     let out = repertoire(&["scene", "check", path.to_str().unwrap()]);
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("c.ron"));
-    let text = ok(&repertoire(&["scene", "check", root().join("scenes/sit_latent.ron").to_str().unwrap()]));
-    assert!(text.contains("low level latent model") && text.contains("skills/library/latent"), "{text}");
+    let text = ok(&repertoire(&["scene", "check", root().join("scenarios/sit_latent.ron").to_str().unwrap()]));
+    assert!(text.contains("low level latent model") && text.contains("library/latent"), "{text}");
     let text = ok(&repertoire(&["scene", "check"]));
     assert!(text.contains("low level skills"), "{text}");
     assert!(text.contains("standing pose: the feet's lowest point 1.0 mm above the floor"), "{text}");
@@ -62,7 +62,7 @@ fn the_low_level_field_defaults_resolves_and_refuses_a_missing_model() {
 #[test]
 fn a_latent_high_level_trains_and_evaluates_on_the_sitting_scenario() {
     let dir = common::temp_dir("latent-meta-run");
-    let scenario = root().join("scenes/sit_latent.ron");
+    let scenario = root().join("scenarios/sit_latent.ron");
     let meta = dir.join("meta");
     let text = ok(&repertoire(&[
         "meta",
@@ -80,7 +80,7 @@ fn a_latent_high_level_trains_and_evaluates_on_the_sitting_scenario() {
     assert!(text.contains("| 2 |") && text.contains("latent high level (z of"), "{text}");
     assert!(meta.join("latent_meta.ron").exists() && meta.join("latent_meta.safetensors").exists());
     let manifest = std::fs::read_to_string(meta.join("latent_meta.ron")).unwrap();
-    assert!(manifest.contains("latent_fnv1a") && manifest.contains("skills/library/latent"), "{manifest}");
+    assert!(manifest.contains("latent_fnv1a") && manifest.contains("library/latent"), "{manifest}");
     let metrics = std::fs::read_to_string(dir.join("run/metrics.csv")).unwrap();
     assert_eq!(metrics.lines().count(), 3, "{metrics}");
     // The zone curriculum is logged as for the skills' controller (for `repertoire report`).
@@ -204,12 +204,12 @@ fn a_latent_high_level_trains_and_evaluates_on_the_sitting_scenario() {
 #[test]
 fn the_ablation_plans_the_latent_row() {
     let dir = common::temp_dir("latent-meta-ablate");
-    let spec = root().join("meta/ablations/sit.ron");
+    let spec = root().join("ablations/sit.ron");
     ok(&repertoire(&["ablate", spec.to_str().unwrap(), "--plan-only", "--out", dir.to_str().unwrap()]));
     let plan = std::fs::read_to_string(dir.join("runs/latent-low-level--npmp--s1/plan.ron")).expect("plan file");
     let compact: String = plan.split_whitespace().collect();
     assert!(compact.contains("\"meta\",\"train\"") && compact.contains("\"meta\",\"eval\""), "{plan}");
-    assert_eq!(compact.matches("\"--latent\",\"skills/library/latent\"").count(), 2, "{plan}");
+    assert_eq!(compact.matches("\"--latent\",\"library/latent\"").count(), 2, "{plan}");
     assert!(!compact.contains("--chain") && !compact.contains("--skills"), "{plan}");
     // The skills' rows do not name a latent model.
     let plan = std::fs::read_to_string(dir.join("runs/full-model-s1/plan.ron")).unwrap();

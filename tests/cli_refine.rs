@@ -1,5 +1,5 @@
 //! `repertoire meta refine`: a skill fine-tuned in the controller's episodes, through the binary,
-//! on a copy of the committed library (it never writes into `skills/library`).
+//! on a copy of the committed library (it never writes into `library`).
 
 mod common;
 
@@ -13,7 +13,7 @@ fn sitting_library(name: &str) -> PathBuf {
     for skill in ["walk_to", "turn_left", "turn_right", "turn_left_wide", "turn_right_wide", "stand", "sit", "meta"] {
         let to = lib.join(skill);
         std::fs::create_dir_all(&to).unwrap();
-        for f in std::fs::read_dir(Path::new("skills/library").join(skill)).unwrap() {
+        for f in std::fs::read_dir(Path::new("library").join(skill)).unwrap() {
             let f = f.unwrap().path();
             if f.is_file() {
                 std::fs::copy(&f, to.join(f.file_name().unwrap())).unwrap();
@@ -23,9 +23,9 @@ fn sitting_library(name: &str) -> PathBuf {
     lib
 }
 
-/// `repertoire meta refine --spec skills/skill/specs/SPEC --library LIB` with `more` after it.
+/// `repertoire meta refine --spec specs/SPEC --library LIB` with `more` after it.
 fn refine(spec: &str, lib: &Path, more: &[&str]) -> std::process::Output {
-    let (spec, lib) = (format!("skills/skill/specs/{spec}"), lib.display().to_string());
+    let (spec, lib) = (format!("specs/{spec}"), lib.display().to_string());
     let mut args = vec!["meta", "refine", "--spec", &spec, "--library", &lib];
     args.extend_from_slice(more);
     repertoire(&args)

@@ -11,7 +11,7 @@ use common::{ok, repertoire};
 #[test]
 fn report_gathers_a_meta_run_and_its_evaluation() {
     let dir = common::temp_dir("cli-report");
-    let lib = Path::new(env!("CARGO_MANIFEST_DIR")).join("skills/library");
+    let lib = Path::new(env!("CARGO_MANIFEST_DIR")).join("library");
     let (meta, run, eval) = (dir.join("meta"), dir.join("run"), dir.join("eval"));
     let s = |p: &Path| p.to_str().unwrap().to_string();
     ok(&repertoire(&[

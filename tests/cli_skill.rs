@@ -13,7 +13,7 @@ fn train_eval_and_finetune_a_chain() {
     let dir = common::temp_dir("cli-skill");
     let lib = dir.join("library");
     let lib = lib.to_str().unwrap();
-    let spec = |name: &str| Path::new(env!("CARGO_MANIFEST_DIR")).join("skills/skill/specs").join(name);
+    let spec = |name: &str| Path::new(env!("CARGO_MANIFEST_DIR")).join("specs").join(name);
     let tiny = ["--iterations", "2", "--envs", "4", "--checkpoint-every", "0"];
 
     let walk = spec("walk.ron");
@@ -117,7 +117,7 @@ fn meta_train_eval_and_the_main_job() {
     let dir = common::temp_dir("cli-meta");
     let lib = dir.join("library");
     let lib_s = lib.to_str().unwrap();
-    let spec = |name: &str| Path::new(env!("CARGO_MANIFEST_DIR")).join("skills/skill/specs").join(name);
+    let spec = |name: &str| Path::new(env!("CARGO_MANIFEST_DIR")).join("specs").join(name);
     // The stand starts from walk_to's and the turns' end poses, so their pools are written first
     // (a 1-iteration policy's may be empty; training then starts from reference states).
     for name in ["walk_to", "turn_left", "turn_right", "turn_left_wide", "turn_right_wide", "stand", "sit"] {
@@ -272,7 +272,7 @@ fn meta_train_eval_and_the_main_job() {
 #[test]
 fn the_ablation_study_plans_one_described_run_per_variant_and_seed() {
     let dir = common::temp_dir("cli-ablate");
-    let spec = Path::new(env!("CARGO_MANIFEST_DIR")).join("meta/ablations/sit.ron");
+    let spec = Path::new(env!("CARGO_MANIFEST_DIR")).join("ablations/sit.ron");
     let text = ok(&repertoire(&["ablate", spec.to_str().unwrap(), "--plan-only", "--out", dir.to_str().unwrap()]));
     assert!(text.contains("33 runs planned"), "{text}");
     let plan = std::fs::read_to_string(dir.join("runs/flat--the-sit-policy-alone-s1/plan.ron")).expect("plan file");
@@ -303,7 +303,7 @@ fn the_ablation_study_plans_one_described_run_per_variant_and_seed() {
     assert!(plan.contains("--no-curriculum"), "{plan}");
     // A variant on another scenario trains and evaluates on it; the others on the default.
     let plan = std::fs::read_to_string(dir.join("runs/the-paper-s-approach-reward-s1/plan.ron")).expect("plan file");
-    assert_eq!(plan.matches("scenes/sit_paper_reward.ron").count(), 2, "{plan}");
+    assert_eq!(plan.matches("scenarios/sit_paper_reward.ron").count(), 2, "{plan}");
     assert!(!std::fs::read_to_string(dir.join("runs/full-model-s1/plan.ron")).unwrap().contains("sit_paper_reward"));
     // A malformed study is refused with its place.
     let bad = dir.join("bad.ron");
@@ -317,7 +317,7 @@ fn the_ablation_study_plans_one_described_run_per_variant_and_seed() {
 /// Writes `DIR/study.ron`: one iteration per run over the committed library, with `budget`
 /// (seeds and trials) and `variants`.
 fn study(dir: &Path, budget: &str, variants: &str) -> std::path::PathBuf {
-    let library = Path::new(env!("CARGO_MANIFEST_DIR")).join("skills/library");
+    let library = Path::new(env!("CARGO_MANIFEST_DIR")).join("library");
     let spec = dir.join("study.ron");
     let text = format!("Ablation(library: \"{}\", iterations: 1, {budget}, variants: [{variants}])", library.display());
     std::fs::write(&spec, text).unwrap();
@@ -408,7 +408,7 @@ fn zero_iterations_are_refused_rather_than_run_as_one() {
     // `--iterations 0` used to train one iteration and write it into the library.
     let dir = common::temp_dir("cli-zero-iterations");
     let lib = dir.join("library");
-    let walk = Path::new(env!("CARGO_MANIFEST_DIR")).join("skills/skill/specs/walk.ron");
+    let walk = Path::new(env!("CARGO_MANIFEST_DIR")).join("specs/walk.ron");
     for args in [
         vec!["skill", "train", walk.to_str().unwrap(), "--iterations", "0", "--library", lib.to_str().unwrap()],
         vec!["meta", "train", "--iterations", "0", "--library", lib.to_str().unwrap()],
@@ -427,8 +427,8 @@ fn zero_iterations_from_a_warm_start_copy_the_controller_pinned_to_the_library()
     // the library's skills and naming the controller it came from.
     let dir = common::temp_dir("cli-repin");
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let from = root.join("skills/library/meta");
-    let (library, out, run) = (root.join("skills/library"), dir.join("meta"), dir.join("run"));
+    let from = root.join("library/meta");
+    let (library, out, run) = (root.join("library"), dir.join("meta"), dir.join("run"));
     let path = |p: &Path| p.to_str().unwrap().to_string();
     let args = ["meta", "train", "--iterations", "0", "--warm-start", &path(&from), "--library", &path(&library)];
     let stdout = common::ok(&repertoire(&[&args[..], &["--out", &path(&out), "--run-dir", &path(&run)]].concat()));
@@ -472,8 +472,8 @@ fn a_negative_or_non_finite_entropy_bonus_or_learning_rate_is_refused() {
 fn meta_deliver_refuses_one_file_for_both_pools() {
     let dir = common::temp_dir("cli-deliver");
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let spec = root.join("skills/skill/specs/sit_reach.ron");
-    let lib = root.join("skills/library");
+    let spec = root.join("specs/sit_reach.ron");
+    let lib = root.join("library");
     let same = dir.join("pool.ron");
     let out = repertoire(&[
         "meta",
@@ -521,10 +521,10 @@ fn skill_eval_takes_its_pool_from_the_trials_pool_from_names() {
     for name in ["sit", "turn_left", "turn_right"] {
         std::fs::create_dir_all(lib.join(name)).unwrap();
         for file in ["manifest.ron", "policy.safetensors", "end_poses.ron"] {
-            std::fs::copy(root.join("skills/library").join(name).join(file), lib.join(name).join(file)).unwrap();
+            std::fs::copy(root.join("library").join(name).join(file), lib.join(name).join(file)).unwrap();
         }
     }
-    let spec = root.join("skills/skill/specs/sit.ron");
+    let spec = root.join("specs/sit.ron");
     let eval = |pool_from: &str| {
         ok(&repertoire(&[
             "skill",
@@ -555,7 +555,7 @@ fn skill_eval_takes_its_pool_from_the_trials_pool_from_names() {
     let out = repertoire(&[
         "skill",
         "eval",
-        root.join("skills/skill/specs/walk.ron").to_str().unwrap(),
+        root.join("specs/walk.ron").to_str().unwrap(),
         "--library",
         lib.to_str().unwrap(),
         "--trials",

@@ -7,11 +7,11 @@ use common::{ok, repertoire, temp_dir};
 
 #[test]
 fn scene_check_accepts_the_warehouse_and_the_toss() {
-    let out = ok(&repertoire(&["scene", "check", "scenes/warehouse.ron"]));
+    let out = ok(&repertoire(&["scene", "check", "scenarios/warehouse.ron"]));
     assert!(out.contains("pedestal_a") && out.contains("2.5..3.5 m at -45..45°") && out.ends_with("ok\n"), "{out}");
     assert!(out.contains("Warehouse: move `box`") && out.contains("reach 0.65 m, 4 resting contacts"), "{out}");
     assert!(out.contains("bind      skills' props: pedestal → the focal pedestal"), "{out}");
-    let out = ok(&repertoire(&["scene", "check", "scenes/toss.ron"]));
+    let out = ok(&repertoire(&["scene", "check", "scenarios/toss.ron"]));
     assert!(out.contains("Toss: catch `ball`") && out.contains("v_x 1.5..4.5 m/s") && out.ends_with("ok\n"), "{out}");
 }
 
@@ -20,7 +20,7 @@ fn meta_commands_name_the_missing_warehouse_and_toss_skills() {
     // A library holding only walk, copied from the committed one (which may gain the others).
     let lib = temp_dir("walk-only-library");
     std::fs::create_dir_all(lib.join("walk")).unwrap();
-    for f in std::fs::read_dir("skills/library/walk").unwrap() {
+    for f in std::fs::read_dir("library/walk").unwrap() {
         let f = f.unwrap().path();
         if f.is_file() {
             std::fs::copy(&f, lib.join("walk").join(f.file_name().unwrap())).unwrap();
@@ -28,8 +28,8 @@ fn meta_commands_name_the_missing_warehouse_and_toss_skills() {
     }
     let lib = lib.display().to_string();
     for (file, missing) in [
-        ("scenes/warehouse.ron", "turn_left, turn_right, lift, carry, put_down"),
-        ("scenes/toss.ron", "turn_left, turn_right, catch, put_down"),
+        ("scenarios/warehouse.ron", "turn_left, turn_right, lift, carry, put_down"),
+        ("scenarios/toss.ron", "turn_left, turn_right, catch, put_down"),
     ] {
         for cmd in ["train", "eval"] {
             let out = repertoire(&["meta", cmd, file, "--library", &lib]);
@@ -39,12 +39,19 @@ fn meta_commands_name_the_missing_warehouse_and_toss_skills() {
         }
     }
     // The toss's graph starts in catch: leaving catch out is refused before any training.
-    let out =
-        repertoire(&["meta", "train", "scenes/toss.ron", "--library", &lib, "--skills", "walk,turn_left,turn_right"]);
+    let out = repertoire(&[
+        "meta",
+        "train",
+        "scenarios/toss.ron",
+        "--library",
+        &lib,
+        "--skills",
+        "walk,turn_left,turn_right",
+    ]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
         !out.status.success()
-            && err.contains("scenes/toss.ron")
+            && err.contains("scenarios/toss.ron")
             && err.contains("start skill")
             && err.contains("catch"),
         "{err}"
@@ -118,13 +125,13 @@ fn warehouse_evaluations_record_their_worst_episodes() {
     let dir = temp_dir("warehouse-worst");
     let meta = dir.join("meta");
     let (meta_s, run_s) = (meta.to_str().unwrap(), dir.join("run").display().to_string());
-    let args = ["meta", "train", "scenes/warehouse.ron", "--iterations", "1", "--envs", "2", "--out", meta_s];
+    let args = ["meta", "train", "scenarios/warehouse.ron", "--iterations", "1", "--envs", "2", "--out", meta_s];
     ok(&repertoire(&[&args[..], &["--run-dir", &run_s]].concat()));
     let eval = dir.join("eval");
     let eval_s = eval.to_str().unwrap();
     let args =
         ["--meta", meta_s, "--trials", "4", "--grid", "0", "--worst", "2", "--out", eval_s, "--record", "random:3"];
-    let out = ok(&repertoire(&[&["meta", "eval", "scenes/warehouse.ron"][..], &args[..]].concat()));
+    let out = ok(&repertoire(&[&["meta", "eval", "scenarios/warehouse.ron"][..], &args[..]].concat()));
     assert!(out.contains("2 worst episodes recorded"), "{out}");
     let random = std::fs::read_dir(eval.join("random"))
         .unwrap()
@@ -132,7 +139,7 @@ fn warehouse_evaluations_record_their_worst_episodes() {
         .count();
     assert_eq!(random, 3, "{out}");
     // A search looks for a sit that succeeds: refused on the warehouse, naming the scenario.
-    let out = repertoire(&["meta", "eval", "scenes/warehouse.ron", "--meta", meta_s, "--controller", "lookahead:2"]);
+    let out = repertoire(&["meta", "eval", "scenarios/warehouse.ron", "--meta", meta_s, "--controller", "lookahead:2"]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("warehouse.ron") && err.contains("sitting scenarios only"), "{err}");
     let recs: Vec<_> = std::fs::read_dir(eval.join("worst"))
@@ -147,7 +154,7 @@ fn warehouse_evaluations_record_their_worst_episodes() {
     }
     // `run` on the warehouse records its worst episodes too.
     let run = dir.join("run-out");
-    let args = ["run", "scenes/warehouse.ron", "--meta", meta_s, "--trials", "3", "--out", run.to_str().unwrap()];
+    let args = ["run", "scenarios/warehouse.ron", "--meta", meta_s, "--trials", "3", "--out", run.to_str().unwrap()];
     ok(&repertoire(&args));
     let md = std::fs::read_to_string(run.join("report.md")).unwrap();
     assert!(md.contains("worst episodes") && run.join("worst").read_dir().unwrap().count() >= 3, "{md}");

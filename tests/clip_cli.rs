@@ -113,8 +113,7 @@ fn a_clip_retargeted_onto_another_body_is_refused_by_play_and_train() {
     assert!(!err.contains("panicked"), "{err}");
 
     // A skill whose spec's clip was made for another body is refused before training.
-    let spec =
-        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("skills/skill/specs/walk.ron")).unwrap();
+    let spec = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("specs/walk.ron")).unwrap();
     let clip_line = spec.lines().find(|l| l.trim_start().starts_with("clip:")).expect("walk.ron names its clip");
     let spec = spec
         .replace(clip_line, "    clip: (file: \"walk.clip.ron\"),")

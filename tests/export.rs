@@ -26,8 +26,8 @@ fn bvh_and_npy_of_a_walk_round_trip() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let dir = common::temp_dir("export");
     let rec_path = dir.join("walk.rec");
-    let spec = root.join("skills/skill/specs/walk.ron");
-    let lib = root.join("skills/library");
+    let spec = root.join("specs/walk.ron");
+    let lib = root.join("library");
     repertoire(
         &["skill", "play", spec.to_str().unwrap(), "--record", rec_path.to_str().unwrap()]
             .into_iter()

@@ -34,7 +34,7 @@ fn judged(fixture: &str, scenario: &str) -> (Recording, Option<(usize, FallCause
 
 #[test]
 fn the_walk_to_that_trips_is_a_fall_though_it_was_recorded_as_none() {
-    let (rec, first) = judged("walk_to_trips_seed1.rec", "skills/skill/specs/arena.ron");
+    let (rec, first) = judged("walk_to_trips_seed1.rec", "specs/arena.ron");
     assert_eq!(rec.first_fall(), None, "the old test recorded no fall in this clip");
     let (f, cause) = first.expect("the fall test counts the trip");
     assert_eq!(cause, FallCause::Low, "the pelvis goes below a third of its standing height");
@@ -46,7 +46,7 @@ fn the_walk_to_that_trips_is_a_fall_though_it_was_recorded_as_none() {
 
 #[test]
 fn the_warehouse_episode_that_ends_upside_down_by_the_pedestal_is_a_fall() {
-    let (rec, first) = judged("warehouse_headstand_on_pedestal.rec", "scenes/warehouse.ron");
+    let (rec, first) = judged("warehouse_headstand_on_pedestal.rec", "scenarios/warehouse.ron");
     assert_eq!(rec.first_fall(), None, "the old test recorded no fall in this clip");
     let (f, cause) = first.expect("the fall test counts the flip");
     assert_eq!(cause, FallCause::Inverted);
@@ -62,7 +62,7 @@ fn fall_check_reports_both_recorded_cases_and_cuts_a_fixture() {
         "fall-check",
         repo("tests/data/falls/warehouse_headstand_on_pedestal.rec").to_str().unwrap(),
         "--scenario",
-        repo("scenes/warehouse.ron").to_str().unwrap(),
+        repo("scenarios/warehouse.ron").to_str().unwrap(),
     ]));
     assert!(out.contains("| no fall | frame 135 (7.50 s) | upside down | head |"), "{out}");
     assert!(out.contains("1 of 1 recordings fall by the fall test now (0 as recorded)"), "{out}");
@@ -72,7 +72,7 @@ fn fall_check_reports_both_recorded_cases_and_cuts_a_fixture() {
         "fall-check",
         repo("tests/data/falls/walk_to_trips_seed1.rec").to_str().unwrap(),
         "--scenario",
-        repo("skills/skill/specs/arena.ron").to_str().unwrap(),
+        repo("specs/arena.ron").to_str().unwrap(),
         "--last-s",
         "0.5",
         "--cut-out",
@@ -85,7 +85,7 @@ fn fall_check_reports_both_recorded_cases_and_cuts_a_fixture() {
         "fall-check",
         repo("tests/data/falls/walk_to_trips_seed1.rec").to_str().unwrap(),
         "--scenario",
-        repo("scenes/warehouse.ron").to_str().unwrap(),
+        repo("scenarios/warehouse.ron").to_str().unwrap(),
     ]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("cannot judge it") && err.contains("warehouse"), "{err}");
@@ -183,9 +183,9 @@ fn the_committed_walk_to_records_its_trip_as_a_fall() {
     let out = ok(&repertoire(&[
         "skill",
         "play",
-        repo("skills/skill/specs/walk_to.ron").to_str().unwrap(),
+        repo("specs/walk_to.ron").to_str().unwrap(),
         "--library",
-        repo("skills/library").to_str().unwrap(),
+        repo("library").to_str().unwrap(),
         "--seed",
         "1",
         "--record",

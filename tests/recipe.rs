@@ -63,16 +63,16 @@ fn a_recipe_runs_skips_what_is_done_resumes_and_reruns_what_changed() {
     let stem = dir.join("work/runs/tune-2/checkpoints/iter-000002");
     let stem_s = stem.to_str().unwrap();
     let lib_s = lib.to_str().unwrap();
-    let turn = ["skill", "train", "skills/skill/specs/turn_left.ron", "--library", lib_s, "--resume", stem_s];
+    let turn = ["skill", "train", "specs/turn_left.ron", "--library", lib_s, "--resume", stem_s];
     let err = String::from_utf8_lossy(&repertoire(&turn).stderr).into_owned();
     assert!(err.contains("the checkpoint trains `walk`, not `turn_left`"), "{err}");
-    let walk = ["skill", "train", "skills/skill/specs/walk.ron", "--library", lib_s, "--resume", stem_s];
+    let walk = ["skill", "train", "specs/walk.ron", "--library", lib_s, "--resume", stem_s];
     let err = String::from_utf8_lossy(&repertoire(&walk).stderr).into_owned();
     assert!(err.contains("started as `finetune` from walk, not `train`"), "{err}");
     let finetune = [
         "skill",
         "finetune",
-        "skills/skill/specs/walk.ron",
+        "specs/walk.ron",
         "--from",
         "walk",
         "--fraction",

@@ -35,11 +35,11 @@ fn replay_page_draws_plays_and_logs_no_error() {
 
     let dir = common::temp_dir("replay-browser");
     let (rec, html) = (dir.join("sit.rec"), dir.join("sit.html"));
-    let spec = root.join("skills/skill/specs/sit.ron");
+    let spec = root.join("specs/sit.ron");
     let out = Command::new(env!("CARGO_BIN_EXE_repertoire"))
         .args(["skill", "play", spec.to_str().unwrap(), "--record", rec.to_str().unwrap()])
         .args(["--from", "turn_left,turn_right", "--seed", "1"])
-        .args(["--html", html.to_str().unwrap(), "--library", root.join("skills/library").to_str().unwrap()])
+        .args(["--html", html.to_str().unwrap(), "--library", root.join("library").to_str().unwrap()])
         .output()
         .expect("run repertoire");
     assert!(out.status.success(), "skill play failed: {}", String::from_utf8_lossy(&out.stderr));

@@ -102,7 +102,7 @@ fn a_recipe_and_an_ablation_through_slurm_come_back_as_the_local_runs() {
     assert!(text.contains("0 jobs submitted") && text.contains("4 stages done"), "{text}");
 
     // The ablation: two variants, here and as a job array.
-    let library = Path::new(env!("CARGO_MANIFEST_DIR")).join("skills/library");
+    let library = Path::new(env!("CARGO_MANIFEST_DIR")).join("library");
     let spec = dir.join("study.ron");
     std::fs::write(
         &spec,

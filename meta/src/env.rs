@@ -26,7 +26,7 @@ use std::sync::{Arc, RwLock};
 use rand::Rng;
 use repertoire_humanoid::ActionMap;
 use repertoire_learn::acting::ActingPolicy;
-use repertoire_learn::env::{Env, EnvRng, MAX_TERMS, StepOutcome};
+use repertoire_learn::env::{Env, EnvRng, MAX_TERMS, StateError, StepOutcome};
 use repertoire_scenes::math::wrap_angle;
 use repertoire_scenes::scenario::{PropBinding, WarehousePhase};
 use repertoire_scenes::{
@@ -810,13 +810,18 @@ impl MetaEnv {
     }
 
     /// Restores [`MetaEnv::decision_snapshot`]; `Err` names a skill out of range.
-    pub fn restore_decision(&mut self, s: &[f64]) -> std::result::Result<(), String> {
+    pub fn restore_decision(&mut self, s: &[f64]) -> std::result::Result<(), StateError> {
         let skills = self.setup.skills.len();
         if s.len() != DECISION_VALUES {
-            return Err(format!("decision snapshot has {} values, expected {DECISION_VALUES}", s.len()));
+            return Err(StateError::length("decision snapshot", DECISION_VALUES, s.len()));
         }
         if !(s[0] >= 0.0 && s[0].fract() == 0.0 && (s[0] as usize) < skills && s[1] >= 0.0) {
-            return Err(format!("decision snapshot's skill is {}, not one of the {skills} skills", s[0]));
+            return Err(StateError::OutOfRange {
+                what: "decision snapshot's skill".into(),
+                value: s[0],
+                count: skills,
+                of: "skills",
+            });
         }
         self.decision = Decision {
             option: s[0] as usize,
@@ -944,26 +949,36 @@ impl Env for MetaEnv {
         out
     }
 
-    fn restore(&mut self, state: &[f64]) -> std::result::Result<(), String> {
+    fn restore(&mut self, state: &[f64]) -> std::result::Result<(), StateError> {
         let w = self.world.snapshot_len();
         let roles: usize = self.setup.skills.iter().filter(|s| s.props.has_roles()).map(|s| s.props.ids.len()).sum();
         let want = w + EPISODE_VALUES + self.task.snapshot_len() + roles;
         if state.len() != want {
-            return Err(format!("meta snapshot has {} values, expected {want}", state.len()));
+            return Err(StateError::length("meta snapshot", want, state.len()));
         }
         let props = self.setup.model.props.len();
         let tail = w + EPISODE_VALUES + self.task.snapshot_len();
         if let Some(v) = state[tail..].iter().find(|v| !(v.is_finite() && **v >= 0.0 && (**v as usize) < props)) {
-            return Err(format!("meta snapshot binds a skill's prop to {v}, not one of the {props} props"));
+            return Err(StateError::OutOfRange {
+                what: "the prop a meta snapshot binds a skill's role to".into(),
+                value: *v,
+                count: props,
+                of: "props",
+            });
         }
         let skills = self.setup.skills.len();
         for (i, what) in [(0, "current skill"), (6, "skill that first touched the chair")] {
             let v = state[w + i];
             if !(v == -1.0 || (v >= 0.0 && v.fract() == 0.0 && (v as usize) < skills)) {
-                return Err(format!("meta snapshot's {what} is {v}, not one of the {skills} skills"));
+                return Err(StateError::OutOfRange {
+                    what: format!("meta snapshot's {what}"),
+                    value: v,
+                    count: skills,
+                    of: "skills",
+                });
             }
         }
-        self.world.restore(&state[..w]).map_err(|e| e.to_string())?;
+        self.world.restore(&state[..w]).map_err(StateError::below)?;
         let s = &state[w..];
         self.current = (s[0] >= 0.0).then_some(s[0] as usize);
         self.phase = s[1] as usize;

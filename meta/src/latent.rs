@@ -26,7 +26,7 @@ use repertoire_humanoid::{HumanoidEnv, Task, TaskStep};
 use repertoire_latent::high::{LatentEnv, Z_BOUND};
 use repertoire_latent::model::LatentPolicy;
 use repertoire_learn::acting::ActingPolicy;
-use repertoire_learn::env::{Env, EnvRng, MAX_TERMS, StepOutcome};
+use repertoire_learn::env::{Env, EnvRng, MAX_TERMS, StateError, StepOutcome};
 use repertoire_learn::ppo::{IterationMetrics, PpoConfig};
 use repertoire_learn::run_dir::git_hash;
 use repertoire_scenes::math::wrap_angle;
@@ -255,13 +255,9 @@ impl Task for LatentTask {
         out.extend(self.state.snapshot());
     }
 
-    fn restore(&mut self, state: &[f64]) -> std::result::Result<(), String> {
+    fn restore(&mut self, state: &[f64]) -> std::result::Result<(), StateError> {
         if state.len() != self.state.snapshot_len() {
-            return Err(format!(
-                "latent task snapshot has {} values, expected {}",
-                state.len(),
-                self.state.snapshot_len()
-            ));
+            return Err(StateError::length("latent task snapshot", self.state.snapshot_len(), state.len()));
         }
         self.state.restore(state);
         Ok(())
@@ -348,7 +344,7 @@ impl Env for LatentMetaEnv {
         self.env.snapshot()
     }
 
-    fn restore(&mut self, state: &[f64]) -> std::result::Result<(), String> {
+    fn restore(&mut self, state: &[f64]) -> std::result::Result<(), StateError> {
         self.env.restore(state)
     }
 }

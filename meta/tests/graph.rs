@@ -61,7 +61,7 @@ fn restricting_the_graph_keeps_its_edges_among_the_kept_skills() {
 
 #[test]
 fn the_toss_starts_in_catch_and_puts_down_only_after_it() {
-    let s = ScenarioFile::load(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/toss.ron")).unwrap();
+    let s = ScenarioFile::load(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios/toss.ron")).unwrap();
     let g = SkillGraph::of(&s.scenario);
     assert_eq!(g.names(), ["walk", "turn_left", "turn_right", "catch", "put_down"]);
     let (walk, catch, put_down) = (0, 3, 4);

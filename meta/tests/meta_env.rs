@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use std::sync::{Arc, OnceLock};
 
 use rand::SeedableRng;
-use repertoire_learn::env::{Env, EnvRng};
+use repertoire_learn::env::{Env, EnvRng, StateError};
 use repertoire_learn::ppo::PpoConfig;
 use repertoire_meta::controller::{LookingAhead, OracleSit};
 use repertoire_meta::eval::evaluate;
@@ -25,7 +25,7 @@ fn library() -> &'static Path {
     LIB.get_or_init(|| {
         let lib = std::env::temp_dir().join(format!("repertoire-meta-lib-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&lib);
-        let specs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../skills/skill/specs");
+        let specs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../specs");
         for name in ["walk_to", "turn_left", "turn_right", "turn_left_wide", "turn_right_wide", "sit"] {
             let spec = SpecFile::load(&specs.join(format!("{name}.ron"))).expect("spec");
             let setup = SkillSetup::new(spec, &lib).expect("skill setup (needs the clip pack)");
@@ -391,7 +391,7 @@ fn a_walk_that_takes_a_target_is_steered_every_decision() {
             std::fs::copy(&f, to.join(f.file_name().unwrap())).unwrap();
         }
     }
-    let specs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../skills/skill/specs");
+    let specs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../specs");
     let spec = SpecFile::load(&specs.join("walk_stage2.ron")).expect("spec");
     let walk = SkillSetup::new(spec, &lib).expect("walk stage 2 builds");
     repertoire_skill::train::train(&walk, &TrainOptions::quick(&lib, &lib.join("run-walk"), 1, 2, 1)).expect("train");
@@ -508,7 +508,7 @@ fn seated_means_on_the_seat_facing_the_chairs_front_not_any_contact() {
 
 /// The library's sit skill and the index of its chair prop.
 fn sit_skill() -> (SkillSetup, usize) {
-    let specs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../skills/skill/specs");
+    let specs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../specs");
     let s = SkillSetup::new(SpecFile::load(&specs.join("sit.ron")).expect("spec"), library()).expect("sit");
     let (chair, _) = s.settings.seat.expect("sit has a seat");
     (s, chair)
@@ -856,7 +856,7 @@ fn untimed_rows(path: &Path) -> Vec<String> {
 fn a_run_resumed_from_its_checkpoint_ends_where_the_uninterrupted_run_ends() {
     // The curriculum moves on after every episode, so the resumed run must pick up its zone, window
     // and episode count to switch where the uninterrupted one does.
-    let text = include_str!("../../scenes/sit.ron").replace("max_episodes: Some(10000)", "max_episodes: Some(1)");
+    let text = include_str!("../../scenarios/sit.ron").replace("max_episodes: Some(10000)", "max_episodes: Some(1)");
     assert!(text.contains("Some(1)"), "the scenario's curriculum budget moved");
     let file = ScenarioFile::parse(Path::new("sit-fast-curriculum.ron"), text).expect("scenario");
     let model = Arc::new(WorldModel::build(file).expect("scene"));
@@ -1213,7 +1213,10 @@ fn the_first_touch_of_the_chair_is_kept_with_the_skill_playing() {
     let mut bad = snap.clone();
     bad[w + 6] = 42.0;
     let err = copy.restore(&bad).expect_err("skill 42");
-    assert!(err.contains("touched the chair") && err.contains("42"), "{err}");
+    assert!(
+        matches!(&err, StateError::OutOfRange { what, value: 42.0, of: "skills", .. } if what.contains("touched the chair")),
+        "{err}"
+    );
     env.reset(&mut EnvRng::seed_from_u64(6), &mut obs);
     assert_eq!(env.touched, None, "a new episode starts untouched");
     copy.restore(&env.snapshot()).expect("restore");

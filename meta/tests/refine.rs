@@ -22,7 +22,7 @@ fn root() -> &'static Path {
 }
 
 fn committed() -> PathBuf {
-    root().join("skills/library")
+    root().join("library")
 }
 
 fn meta_setup(lib: &Path) -> Arc<MetaSetup> {
@@ -32,7 +32,7 @@ fn meta_setup(lib: &Path) -> Arc<MetaSetup> {
 }
 
 fn skill(spec: &str, lib: &Path) -> SkillSetup {
-    let spec = SpecFile::load(&root().join("skills/skill/specs").join(spec)).expect("spec");
+    let spec = SpecFile::load(&root().join("specs").join(spec)).expect("spec");
     SkillSetup::new(spec, lib).expect("skill setup (needs the clip pack)")
 }
 

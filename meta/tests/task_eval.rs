@@ -21,17 +21,17 @@ fn root() -> &'static Path {
 
 /// The shipped scenario `name` with only walk and the turns and a `seconds` episode limit.
 fn walking(name: &str, skills: &str, limit: &str, seconds: f64) -> Arc<MetaSetup> {
-    let text = std::fs::read_to_string(root().join(format!("scenes/{name}.ron"))).unwrap();
-    assert!(text.contains(skills) && text.contains(limit), "scenes/{name}.ron no longer says {skills} and {limit}");
+    let text = std::fs::read_to_string(root().join(format!("scenarios/{name}.ron"))).unwrap();
+    assert!(text.contains(skills) && text.contains(limit), "scenarios/{name}.ron no longer says {skills} and {limit}");
     let text = text
         .replace(skills, r#"skills: ["walk", "turn_left", "turn_right"]"#)
         .replace(&support::graph_block(&text), "")
         .replace("        hold_from: \"lift\",\n", "")
         .replace(limit, &format!("time_limit_s: {seconds:.1}"));
-    let file = ScenarioFile::parse(&root().join(format!("scenes/{name}-walk.ron")), text).unwrap();
+    let file = ScenarioFile::parse(&root().join(format!("scenarios/{name}-walk.ron")), text).unwrap();
     let model = Arc::new(WorldModel::build(file).unwrap());
     let graph = SkillGraph::of(&model.scenario.scenario);
-    Arc::new(MetaSetup::new(model, &root().join("skills/library"), graph).unwrap())
+    Arc::new(MetaSetup::new(model, &root().join("library"), graph).unwrap())
 }
 
 fn tiny_controller(setup: &Arc<MetaSetup>, tag: &str) -> (PathBuf, repertoire_learn::acting::ActingHybrid) {

@@ -23,7 +23,7 @@ fn root() -> &'static Path {
 }
 
 fn toss() -> (Arc<WorldModel>, TossSpec) {
-    let file = ScenarioFile::load(root().join("scenes/toss.ron")).expect("toss.ron");
+    let file = ScenarioFile::load(root().join("scenarios/toss.ron")).expect("toss.ron");
     let model = Arc::new(WorldModel::build(file).expect("compiles"));
     let Task::Toss(t) = &model.scenario.scenario.task else { panic!("not a toss") };
     let spec = TossSpec::new(&model, t).unwrap();
@@ -149,7 +149,7 @@ fn a_ball_in_the_bucket_earns_reward_while_it_stays_there() {
 
 #[test]
 fn the_meta_environment_throws_a_ball_at_every_reset() {
-    let text = std::fs::read_to_string(root().join("scenes/toss.ron")).unwrap();
+    let text = std::fs::read_to_string(root().join("scenarios/toss.ron")).unwrap();
     // Without catch and put_down, and so without the graph that starts in catch.
     let text = text
         .replace(
@@ -157,10 +157,10 @@ fn the_meta_environment_throws_a_ball_at_every_reset() {
             r#"skills: ["walk", "turn_left", "turn_right"]"#,
         )
         .replace(&support::graph_block(&text), "");
-    let file = ScenarioFile::parse(&root().join("scenes/toss-walk.ron"), text).unwrap();
+    let file = ScenarioFile::parse(&root().join("scenarios/toss-walk.ron"), text).unwrap();
     let model = Arc::new(WorldModel::build(file).unwrap());
     let graph = SkillGraph::of(&model.scenario.scenario);
-    let s = Arc::new(MetaSetup::new(model, &root().join("skills/library"), graph).expect("committed skills"));
+    let s = Arc::new(MetaSetup::new(model, &root().join("library"), graph).expect("committed skills"));
     assert_eq!(s.obs_dim(), s.layout.size + 4 + 3 + 1);
     let mut env = MetaEnv::new(Arc::clone(&s));
     assert_eq!(env.term_names(), TOSS_TERMS);

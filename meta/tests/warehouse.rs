@@ -22,7 +22,7 @@ fn root() -> &'static Path {
 }
 
 fn warehouse() -> Arc<WorldModel> {
-    let file = ScenarioFile::load(root().join("scenes/warehouse.ron")).expect("warehouse.ron");
+    let file = ScenarioFile::load(root().join("scenarios/warehouse.ron")).expect("warehouse.ron");
     Arc::new(WorldModel::build(file).expect("compiles"))
 }
 
@@ -196,18 +196,18 @@ fn the_judge_runs_the_phases_in_order_with_one_reward_each_and_swaps_pedestals()
 
 /// The shipped warehouse with only the committed walk and turn skills.
 fn walking_setup(start_phases: &str) -> Arc<MetaSetup> {
-    let text = std::fs::read_to_string(root().join("scenes/warehouse.ron")).unwrap();
+    let text = std::fs::read_to_string(root().join("scenarios/warehouse.ron")).unwrap();
     let skills = r#"skills: ["walk_to", "turn_left", "turn_right", "lift", "carry", "put_down"]"#;
-    assert!(text.contains(skills), "scenes/warehouse.ron no longer lists {skills}");
+    assert!(text.contains(skills), "scenarios/warehouse.ron no longer lists {skills}");
     let text = text
         .replace(skills, r#"skills: ["walk", "turn_left", "turn_right"]"#)
         .replace(&support::graph_block(&text), "")
         .replace("        hold_from: \"lift\",\n", "")
         .replace("start_phases: [Goto, Lift, Carry, PutDown]", &format!("start_phases: [{start_phases}]"));
-    let file = ScenarioFile::parse(&root().join("scenes/warehouse-walk.ron"), text).expect("variant");
+    let file = ScenarioFile::parse(&root().join("scenarios/warehouse-walk.ron"), text).expect("variant");
     let model = Arc::new(WorldModel::build(file).unwrap());
     let graph = SkillGraph::of(&model.scenario.scenario);
-    Arc::new(MetaSetup::new(model, &root().join("skills/library"), graph).expect("committed walk and turns"))
+    Arc::new(MetaSetup::new(model, &root().join("library"), graph).expect("committed walk and turns"))
 }
 
 #[test]
@@ -284,13 +284,13 @@ fn a_library_without_the_warehouse_skills_is_refused_naming_them() {
     let lib = std::env::temp_dir().join(format!("repertoire-walk-only-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&lib);
     std::fs::create_dir_all(lib.join("walk")).unwrap();
-    for f in std::fs::read_dir(root().join("skills/library/walk")).unwrap() {
+    for f in std::fs::read_dir(root().join("library/walk")).unwrap() {
         let f = f.unwrap().path();
         if f.is_file() {
             std::fs::copy(&f, lib.join("walk").join(f.file_name().unwrap())).unwrap();
         }
     }
-    let file = ScenarioFile::load(root().join("scenes/warehouse.ron")).unwrap();
+    let file = ScenarioFile::load(root().join("scenarios/warehouse.ron")).unwrap();
     let model = Arc::new(WorldModel::build(file).unwrap());
     let graph = SkillGraph::of(&model.scenario.scenario);
     let err = MetaSetup::new(model, &lib, graph).err().expect("skills are missing").to_string();
@@ -301,14 +301,14 @@ fn a_library_without_the_warehouse_skills_is_refused_naming_them() {
 
 #[test]
 fn a_warehouse_without_spawn_zones_is_refused() {
-    let text = std::fs::read_to_string(root().join("scenes/warehouse.ron")).unwrap();
+    let text = std::fs::read_to_string(root().join("scenarios/warehouse.ron")).unwrap();
     let start = text.find("    spawn: [").unwrap();
     let end = start + text[start..].find("    ],\n").unwrap() + "    ],\n".len();
     let text = format!("{}{}", &text[..start], &text[end..]);
-    let file = ScenarioFile::parse(&root().join("scenes/no-spawn.ron"), text).unwrap();
+    let file = ScenarioFile::parse(&root().join("scenarios/no-spawn.ron"), text).unwrap();
     let model = Arc::new(WorldModel::build(file).unwrap());
     let graph = SkillGraph::of(&model.scenario.scenario).restricted(&["walk_to".to_string()]).unwrap();
-    let err = MetaSetup::new(model, &root().join("skills/library"), graph).err().expect("no zone").to_string();
+    let err = MetaSetup::new(model, &root().join("library"), graph).err().expect("no zone").to_string();
     assert!(err.contains("no-spawn.ron") && err.contains("spawn zone"), "{err}");
 }
 
@@ -320,7 +320,7 @@ fn a_body_without_the_humanoid_arm_joints_cannot_start_holding_the_box() {
     let body = repertoire_scenes::BodyDef::humanoid();
     std::fs::write(dir.join("forearm.xml"), body.mjcf.replace("_elbow\"", "_forearm\"")).unwrap();
     std::fs::write(dir.join("forearm.map.ron"), body.map_text.replace("_elbow\"", "_forearm\"")).unwrap();
-    let text = std::fs::read_to_string(root().join("scenes/warehouse.ron")).unwrap().replace(
+    let text = std::fs::read_to_string(root().join("scenarios/warehouse.ron")).unwrap().replace(
         "body: Humanoid",
         &format!(
             "body: Mjcf(file: \"{}\", map: \"{}\")",
@@ -345,13 +345,13 @@ fn a_body_without_the_humanoid_arm_joints_cannot_start_holding_the_box() {
 /// The warehouse with `hold_from: "lift"` (CARRY and PUTDOWN start in lift's end states),
 /// episodes starting in `start_phases`, over the committed library.
 fn holding_setup(start_phases: &str, library: &Path) -> Result<Arc<MetaSetup>, repertoire_meta::MetaError> {
-    let text = std::fs::read_to_string(root().join("scenes/warehouse.ron")).unwrap();
+    let text = std::fs::read_to_string(root().join("scenarios/warehouse.ron")).unwrap();
     let phases = "start_phases: [Goto, Lift, Carry, PutDown],";
-    assert!(text.contains(phases), "scenes/warehouse.ron no longer holds {phases}");
+    assert!(text.contains(phases), "scenarios/warehouse.ron no longer holds {phases}");
     let text = text
         .replace("        hold_from: \"lift\",\n", "")
         .replace(phases, &format!("start_phases: [{start_phases}],\n        hold_from: \"lift\","));
-    let file = ScenarioFile::parse(&root().join("scenes/warehouse-hold.ron"), text).expect("variant");
+    let file = ScenarioFile::parse(&root().join("scenarios/warehouse-hold.ron"), text).expect("variant");
     let model = Arc::new(WorldModel::build(file).unwrap());
     let graph = SkillGraph::of(&model.scenario.scenario);
     MetaSetup::new(model, library, graph).map(Arc::new)
@@ -359,7 +359,7 @@ fn holding_setup(start_phases: &str, library: &Path) -> Result<Arc<MetaSetup>, r
 
 #[test]
 fn carry_and_putdown_can_start_in_lifts_end_states_with_the_box_fitted_between_the_hands() {
-    let lib = root().join("skills/library");
+    let lib = root().join("library");
     let s = holding_setup("Carry, PutDown", &lib).expect("the committed library has lift's end states");
     let TaskSpec::Warehouse(w) = &s.task else { panic!() };
     let pool = w.hold_pool.clone().expect("hold_from's pool is loaded");

@@ -14,8 +14,8 @@ fn worst_trials_are_recorded_as_they_ran() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
     let model = Arc::new(WorldModel::build(ScenarioFile::builtin_default()).expect("default scene"));
     let graph = SkillGraph::of(&model.scenario.scenario);
-    let setup = Arc::new(MetaSetup::new(model, &root.join("skills/library"), graph).expect("committed library"));
-    let (_, head) = load(&root.join("skills/library/meta"), &setup).expect("committed meta-controller");
+    let setup = Arc::new(MetaSetup::new(model, &root.join("library"), graph).expect("committed library"));
+    let (_, head) = load(&root.join("library/meta"), &setup).expect("committed meta-controller");
     let zones = vec!["front".to_string(), "behind".to_string()];
     let report = evaluate(&setup, &head, &zones, 3, 3, 7).expect("evaluate");
 

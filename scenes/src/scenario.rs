@@ -836,8 +836,8 @@ pub struct ScenarioFile {
 }
 
 /// Name under which the built-in default scenario is reported.
-pub const DEFAULT_SCENARIO_NAME: &str = "<built-in>/scenes/sit.ron";
-const DEFAULT_SCENARIO: &str = include_str!("../sit.ron");
+pub const DEFAULT_SCENARIO_NAME: &str = "<built-in>/scenarios/sit.ron";
+const DEFAULT_SCENARIO: &str = include_str!("../../scenarios/sit.ron");
 
 impl ScenarioFile {
     /// Reads, parses and validates a scenario file.
@@ -847,7 +847,7 @@ impl ScenarioFile {
         Self::parse(path, text)
     }
 
-    /// The built-in default scenario (`scenes/sit.ron`, compiled into the binary).
+    /// The built-in default scenario (`scenarios/sit.ron`, compiled into the binary).
     pub fn builtin_default() -> Self {
         Self::parse(Path::new(DEFAULT_SCENARIO_NAME), DEFAULT_SCENARIO.to_string())
             .expect("the built-in scenario is checked by the test suite")

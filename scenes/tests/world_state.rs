@@ -58,6 +58,6 @@ fn check(scenario: ScenarioFile) {
 fn a_restored_world_steps_on_exactly_as_the_original() {
     check(ScenarioFile::builtin_default());
     // Free props (a box drawn at another size and mass per episode) on pedestals.
-    let warehouse = Path::new(env!("CARGO_MANIFEST_DIR")).join("warehouse.ron");
+    let warehouse = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios/warehouse.ron");
     check(ScenarioFile::load(&warehouse).expect("warehouse scenario"));
 }

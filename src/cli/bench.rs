@@ -23,7 +23,7 @@ pub enum BenchCommand {
 /// `bench world`'s arguments.
 #[derive(Debug, clap::Args)]
 pub struct WorldArgs {
-    /// Scenario RON file (default: the built-in scenes/sit.ron).
+    /// Scenario RON file (default: the built-in scenarios/sit.ron).
     pub file: Option<PathBuf>,
     /// Physics steps per measurement.
     #[arg(long, default_value_t = 48_000)]
@@ -39,7 +39,7 @@ pub struct WorldArgs {
 /// `bench ppo`'s arguments.
 #[derive(Debug, clap::Args)]
 pub struct PpoArgs {
-    /// Scenario RON file (default: the built-in scenes/sit.ron).
+    /// Scenario RON file (default: the built-in scenarios/sit.ron).
     pub file: Option<PathBuf>,
     /// Parallel environments.
     #[arg(long, default_value_t = 32)]

@@ -45,7 +45,7 @@ pub enum ClipCommand {
         /// Retarget map for mocap (default: the shipped map whose joints the file has).
         #[arg(long)]
         map: Option<PathBuf>,
-        /// Scenario whose body it plays on (default: the built-in scenes/sit.ron).
+        /// Scenario whose body it plays on (default: the built-in scenarios/sit.ron).
         #[arg(long)]
         scene: Option<PathBuf>,
         /// Keep the scenario's props at their nominal places (by default the clip plays alone).

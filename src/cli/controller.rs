@@ -19,7 +19,7 @@ use super::meta::{DEFAULT_LIBRARY, PlannerArgs};
 /// The scenario, the skill library and the skill graph a command runs over.
 #[derive(Debug, Clone, clap::Args)]
 pub struct ScenarioArgs {
-    /// Scenario RON file (default: the built-in scenes/sit.ron).
+    /// Scenario RON file (default: the built-in scenarios/sit.ron).
     pub file: Option<PathBuf>,
     /// Skill library.
     #[arg(long, default_value = DEFAULT_LIBRARY)]

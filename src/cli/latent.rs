@@ -11,8 +11,8 @@ use repertoire_latent::model::{LatentConfig, LatentPolicy, Weighting};
 use repertoire_latent::train::{TrainOptions, train};
 use repertoire_skill::train::default_run_dir;
 
-const DEFAULT_LIBRARY: &str = "skills/library";
-const DEFAULT_SPECS: &str = "skills/skill/specs";
+const DEFAULT_LIBRARY: &str = "library";
+const DEFAULT_SPECS: &str = "specs";
 const DEFAULT_SKILLS: [&str; 4] = ["walk", "turn_left", "turn_right", "sit"];
 
 /// Loss weighting on the command line.
@@ -44,7 +44,7 @@ pub enum LatentCommand {
         /// The model folder (from `latent train`).
         model: PathBuf,
         /// The skill spec whose clip frames episodes start from (and whose scene is used).
-        #[arg(long, default_value = "skills/skill/specs/walk.ron")]
+        #[arg(long, default_value = "specs/walk.ron")]
         start: PathBuf,
         /// Skill library folder (for the spec's pools, if any).
         #[arg(long, default_value = DEFAULT_LIBRARY)]

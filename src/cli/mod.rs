@@ -31,7 +31,7 @@ pub struct Cli {
 
 #[derive(Debug, Subcommand)]
 pub enum Command {
-    /// Run the main job on a scenario (default: the built-in scenes/sit.ron).
+    /// Run the main job on a scenario (default: the built-in scenarios/sit.ron).
     Run(run::RunArgs),
     /// Inspect scenario files.
     #[command(subcommand)]

@@ -67,8 +67,8 @@ pub struct FallCheckArgs {
     /// Recordings (`.rec`), or folders holding some (an eval folder's `worst/` is searched too).
     #[arg(required = true)]
     pub inputs: Vec<PathBuf>,
-    /// The scenario the recordings were made in (default: the built-in scenes/sit.ron; a skill's
-    /// recordings: its spec's `scene`, e.g. skills/skill/specs/arena.ron).
+    /// The scenario the recordings were made in (default: the built-in scenarios/sit.ron; a skill's
+    /// recordings: its spec's `scene`, e.g. specs/arena.ron).
     #[arg(long)]
     pub scenario: Option<PathBuf>,
     /// With one recording: write its last S seconds to --cut-out (a test fixture of a fall).

@@ -1,10 +1,10 @@
 //! `repertoire run [FILE]`: the main job on a scenario.
 //!
-//! With a trained meta-controller (default: the committed `skills/library/meta`) this runs it
+//! With a trained meta-controller (default: the committed `library/meta`) this runs it
 //! with the skill library on the scenario and evaluates a quick number of trials per spawn
 //! zone, printing the sitting table. A scenario driven through the latent low level
 //! (`low_level: Latent(..)`) runs its latent high level instead (default
-//! `skills/library/latent-meta-<scenario name>`). Without a trained controller it says how to
+//! `library/latent-meta-<scenario name>`). Without a trained controller it says how to
 //! train one and shows the scene with the character holding its standing pose under PD control.
 
 use anyhow::Result;

@@ -12,12 +12,12 @@ use std::sync::Arc;
 pub enum SceneCommand {
     /// Validate a scenario and print its body, degrees of freedom, props and zones.
     Check {
-        /// Scenario RON file (default: the built-in scenes/sit.ron).
+        /// Scenario RON file (default: the built-in scenarios/sit.ron).
         file: Option<PathBuf>,
     },
     /// Print the composed MJCF that MuJoCo compiles for a scenario.
     Mjcf {
-        /// Scenario RON file (default: the built-in scenes/sit.ron).
+        /// Scenario RON file (default: the built-in scenarios/sit.ron).
         file: Option<PathBuf>,
     },
 }

@@ -13,13 +13,13 @@ use repertoire_skill::train::{TrainOptions, TrainOutcome, default_run_dir, train
 use repertoire_skill::{SkillSetup, SpecFile};
 
 /// Where trained skills go unless `--library` says otherwise (committed with the repository).
-const DEFAULT_LIBRARY: &str = "skills/library";
+const DEFAULT_LIBRARY: &str = "library";
 
 #[derive(Debug, Subcommand)]
 pub enum SkillCommand {
     /// Train a skill from its spec (stage one: reference-state initialisation) into the library.
     Train {
-        /// The skill spec (e.g. skills/skill/specs/walk.ron).
+        /// The skill spec (e.g. specs/walk.ron).
         spec: PathBuf,
         /// Start from the library's skill of this name instead of a fresh policy: the skill's
         /// next training stage (walk stage 2, `walk_stage2.ron`, from the stage-1 walk).

@@ -52,12 +52,12 @@ pub fn tiny_recipe(dir: &Path, fraction: &str) -> PathBuf {
     work: "{work}",
     vars: {{"fraction": "{fraction}"}},
     stages: [
-        Run(name: "walk", args: ["skill", "train", "skills/skill/specs/walk.ron", "--library", "{{work}}/lib", "--run-dir", "{{work}}/runs/walk",
+        Run(name: "walk", args: ["skill", "train", "specs/walk.ron", "--library", "{{work}}/lib", "--run-dir", "{{work}}/runs/walk",
             "--iterations", "2", "--envs", "2", "--serial", "--checkpoint-every", "1"], writes: ["{{work}}/lib/walk"], resume: "{{work}}/runs/walk"),
-        Run(name: "pool", args: ["skill", "eval", "skills/skill/specs/walk.ron", "--library", "{{work}}/lib", "--trials", "4", "--batch", "2"],
+        Run(name: "pool", args: ["skill", "eval", "specs/walk.ron", "--library", "{{work}}/lib", "--trials", "4", "--batch", "2"],
             writes: ["{{work}}/lib/walk/end_poses.ron"]),
         Rounds(name: "tune", max: 2, stages: [
-            Run(name: "finetune", args: ["skill", "finetune", "skills/skill/specs/walk.ron", "--from", "walk", "--fraction", "{{fraction}}",
+            Run(name: "finetune", args: ["skill", "finetune", "specs/walk.ron", "--from", "walk", "--fraction", "{{fraction}}",
                 "--library", "{{work}}/lib", "--run-dir", "{{work}}/runs/tune-{{round}}", "--iterations", "2", "--envs", "2", "--serial",
                 "--checkpoint-every", "1"],
                 writes: ["{{work}}/lib/walk"], resume: "{{work}}/runs/tune-{{round}}"),

@@ -25,7 +25,7 @@ use std::sync::Arc;
 
 use repertoire_humanoid::Task as _;
 use repertoire_learn::acting::ActingHybrid;
-use repertoire_learn::env::{Env, EnvRng, MAX_TERMS, StepOutcome};
+use repertoire_learn::env::{Env, EnvRng, MAX_TERMS, StateError, StepOutcome};
 use repertoire_skill::imitation::{ImitationTask, TaskSettings};
 
 use crate::env::{DECISION_VALUES, MetaEnv, MetaSetup};
@@ -302,12 +302,14 @@ impl Env for RefineEnv {
         out
     }
 
-    fn restore(&mut self, state: &[f64]) -> std::result::Result<(), String> {
+    fn restore(&mut self, state: &[f64]) -> std::result::Result<(), StateError> {
         let mut score = Vec::new();
         self.score.snapshot(&mut score);
         let tail = DECISION_VALUES + score.len();
         let Some(split) = state.len().checked_sub(tail) else {
-            return Err(format!("refine snapshot has {} values, fewer than the {tail} of its tail", state.len()));
+            // At least its tail (the decision and the score); the meta snapshot's own length is
+            // checked below.
+            return Err(StateError::length("refine snapshot", tail, state.len()));
         };
         self.meta.restore(&state[..split])?;
         self.meta.restore_decision(&state[split..split + DECISION_VALUES])?;

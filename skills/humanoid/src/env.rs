@@ -2,7 +2,7 @@
 
 use std::sync::Arc;
 
-use repertoire_learn::env::{Env, EnvRng, MAX_TERMS, StepOutcome};
+use repertoire_learn::env::{Env, EnvRng, MAX_TERMS, StateError, StepOutcome};
 use repertoire_scenes::{Feature, ObservationLayout, Result, World, WorldModel};
 
 /// What a task says about one control step.
@@ -36,7 +36,7 @@ pub trait Task: Send {
     /// The task's own state, for checkpoints (empty by default).
     fn snapshot(&self, _out: &mut Vec<f64>) {}
     /// Restores [`Task::snapshot`]'s output; `state` is exactly what it wrote.
-    fn restore(&mut self, _state: &[f64]) -> std::result::Result<(), String> {
+    fn restore(&mut self, _state: &[f64]) -> std::result::Result<(), StateError> {
         Ok(())
     }
 }
@@ -237,17 +237,14 @@ impl<T: Task> Env for HumanoidEnv<T> {
         out
     }
 
-    fn restore(&mut self, state: &[f64]) -> std::result::Result<(), String> {
+    fn restore(&mut self, state: &[f64]) -> std::result::Result<(), StateError> {
         let w = self.world.snapshot_len();
         let task_len = state.last().map_or(0, |&n| n as usize);
         if state.len() != w + 2 + task_len {
-            return Err(format!(
-                "humanoid snapshot has {} values, expected {} (world) + 1 (step count) + {task_len} (task) + 1",
-                state.len(),
-                w
-            ));
+            // The world's values, the step count, the task's and their count.
+            return Err(StateError::length("humanoid snapshot", w + 2 + task_len, state.len()));
         }
-        self.world.restore(&state[..w]).map_err(|e| e.to_string())?;
+        self.world.restore(&state[..w]).map_err(StateError::below)?;
         self.steps = state[w] as u32;
         self.task.restore(&state[w + 1..w + 1 + task_len])
     }

@@ -10,7 +10,7 @@ use std::sync::Arc;
 
 use rand::Rng;
 use repertoire_humanoid::{HumanoidEnv, Task, TaskStep};
-use repertoire_learn::env::{Env, EnvRng, MAX_TERMS, StepOutcome};
+use repertoire_learn::env::{Env, EnvRng, MAX_TERMS, StateError, StepOutcome};
 use repertoire_scenes::{ObservationLayout, World};
 use repertoire_skill::imitation::{ImitationTask, TaskSettings};
 use repertoire_skill::reference::to_heading;
@@ -96,7 +96,7 @@ impl<T: Task> Env for LatentEnv<T> {
         self.inner.snapshot()
     }
 
-    fn restore(&mut self, state: &[f64]) -> std::result::Result<(), String> {
+    fn restore(&mut self, state: &[f64]) -> std::result::Result<(), StateError> {
         self.inner.restore(state)
     }
 }
@@ -204,9 +204,9 @@ impl Task for GoToTarget {
         out.extend_from_slice(&[self.target[0], self.target[1], self.last_distance, self.min_distance]);
     }
 
-    fn restore(&mut self, s: &[f64]) -> std::result::Result<(), String> {
+    fn restore(&mut self, s: &[f64]) -> std::result::Result<(), StateError> {
         if s.len() != 4 {
-            return Err(format!("go-to-target snapshot has {} values, expected 4", s.len()));
+            return Err(StateError::length("go-to-target snapshot", 4, s.len()));
         }
         self.target = [s[0], s[1]];
         self.last_distance = s[2];

@@ -20,7 +20,7 @@ fn root() -> PathBuf {
 }
 
 fn specs(names: &[&str]) -> Vec<PathBuf> {
-    names.iter().map(|n| root().join(format!("skills/skill/specs/{n}.ron"))).collect()
+    names.iter().map(|n| root().join(format!("specs/{n}.ron"))).collect()
 }
 
 fn temp(name: &str) -> PathBuf {
@@ -35,7 +35,7 @@ fn tiny_dataset() -> &'static (PathBuf, Dataset) {
     static DATA: OnceLock<(PathBuf, Dataset)> = OnceLock::new();
     DATA.get_or_init(|| {
         let opts = CollectOptions {
-            library: root().join("skills/library"),
+            library: root().join("library"),
             specs: specs(&["walk", "turn_left"]),
             steps_per_skill: 300,
             k: 5,
@@ -124,7 +124,7 @@ fn ar1_kl_matches_quadrature_and_the_closed_form() {
 fn reference_features_follow_the_clip_relative_to_the_body() {
     for name in ["walk", "turn_left"] {
         let spec = SpecFile::load(&specs(&[name])[0]).expect("spec");
-        let setup = SkillSetup::new(spec, &root().join("skills/library")).expect("setup");
+        let setup = SkillSetup::new(spec, &root().join("library")).expect("setup");
         let mut env = setup.env();
         let mut task = ImitationTask::new(setup.settings.clone());
         let r = &setup.settings.reference;
@@ -323,7 +323,7 @@ fn training_lowers_the_loss_and_the_model_reloads_identically() {
     assert!(err.contains("latent.safetensors"), "{err}");
 
     // One-shot imitation runs both controllers on the same starts and reports in range.
-    let rows = one_shot(&mut policy, &out, &root().join("skills/library"), &specs(&["turn_left"]), 4, 4, 3)
+    let rows = one_shot(&mut policy, &out, &root().join("library"), &specs(&["turn_left"]), 4, 4, 3)
         .expect("one-shot evaluation");
     assert_eq!(rows.len(), 1);
     let r = &rows[0];
@@ -351,7 +351,7 @@ fn a_high_level_over_z_drives_the_frozen_decoder_to_a_target() {
     };
     let (policy, _) = train(data, dir, tiny_config(), &opts).expect("trains");
     let spec = SpecFile::load(&specs(&["walk"])[0]).expect("spec");
-    let setup = SkillSetup::new(spec, &root().join("skills/library")).expect("setup");
+    let setup = SkillSetup::new(spec, &root().join("library")).expect("setup");
     let settings = Arc::new(GoToSettings {
         start: Arc::clone(&setup.settings),
         distance_m: (2.0, 4.0),

@@ -288,7 +288,9 @@ pub fn load<E: Env>(stem: &Path, envs: Vec<E>) -> Result<Ppo<E>, CheckpointError
     ppo.reward_scaler.rms.count = f64s("reward_rms.count", 1)?[0];
     ppo.reward_scaler.returns = f64s("reward.returns", m.num_envs)?;
 
-    ppo.envs.set_state(&m.envs).map_err(|reason| CheckpointError::Corrupt { path: manifest_path.clone(), reason })?;
+    ppo.envs
+        .set_state(&m.envs)
+        .map_err(|e| CheckpointError::Corrupt { path: manifest_path.clone(), reason: e.to_string() })?;
     if m.next_obs.len() != ppo.next_obs.len() {
         return Err(CheckpointError::Corrupt {
             path: manifest_path.clone(),

@@ -60,7 +60,70 @@ pub trait Env: Send {
     /// next steps identical.
     fn snapshot(&self) -> Vec<f64>;
     /// Restore a state from [`Env::snapshot`]; `Err` names what did not fit.
-    fn restore(&mut self, state: &[f64]) -> Result<(), String>;
+    fn restore(&mut self, state: &[f64]) -> Result<(), StateError>;
+}
+
+/// Why a saved state does not fit an environment ([`Env::restore`], [`VecEnv::set_state`]).
+#[derive(Debug, thiserror::Error)]
+pub enum StateError {
+    /// Another number of values than the environment saves.
+    #[error("{what} has {got} values, expected {expected}")]
+    Length {
+        /// What the values are (`meta snapshot`).
+        what: &'static str,
+        /// How many the environment saves.
+        expected: usize,
+        /// How many it was given.
+        got: usize,
+    },
+    /// A value that names nothing here: an index past a list, an unknown code.
+    #[error("{what} is {value}, not one of the {count} {of}")]
+    OutOfRange {
+        /// Which value (`meta snapshot's skill`).
+        what: String,
+        /// The value given.
+        value: f64,
+        /// How many there are.
+        count: usize,
+        /// Of what (`skills`).
+        of: &'static str,
+    },
+    /// What the environment is built on (the MuJoCo world) refused its part.
+    #[error("{0}")]
+    Below(#[source] Box<dyn std::error::Error + Send + Sync>),
+    /// One environment of a [`VecEnv`].
+    #[error("env {index}: {source}")]
+    Env {
+        /// Its slot.
+        index: usize,
+        /// Why.
+        #[source]
+        source: Box<StateError>,
+    },
+    /// A [`VecEnvState`] of another size than the [`VecEnv`].
+    #[error("saved state holds {envs} envs / {obs} observation values, this VecEnv has {want_envs} / {want_obs}")]
+    Shape {
+        /// Environments saved.
+        envs: usize,
+        /// Observation values saved.
+        obs: usize,
+        /// Environments here.
+        want_envs: usize,
+        /// Observation values here.
+        want_obs: usize,
+    },
+}
+
+impl StateError {
+    /// `got` values where `expected` fit (`what`: what the values are).
+    pub fn length(what: &'static str, expected: usize, got: usize) -> StateError {
+        StateError::Length { what, expected, got }
+    }
+
+    /// The error of what the environment is built on.
+    pub fn below(e: impl std::error::Error + Send + Sync + 'static) -> StateError {
+        StateError::Below(Box::new(e))
+    }
 }
 
 /// Statistics of one finished episode.
@@ -274,22 +337,22 @@ impl<E: Env> VecEnv<E> {
     }
 
     /// Restore a [`VecEnvState`]; `Err` says what did not fit.
-    pub fn set_state(&mut self, state: &VecEnvState) -> Result<(), String> {
+    pub fn set_state(&mut self, state: &VecEnvState) -> Result<(), StateError> {
         let n = self.slots.len();
         if state.envs.len() != n
             || state.rngs.len() != n
             || state.running.len() != n
             || state.obs.len() != self.obs.len()
         {
-            return Err(format!(
-                "saved state holds {} envs / {} observation values, this VecEnv has {n} / {}",
-                state.envs.len(),
-                state.obs.len(),
-                self.obs.len()
-            ));
+            return Err(StateError::Shape {
+                envs: state.envs.len(),
+                obs: state.obs.len(),
+                want_envs: n,
+                want_obs: self.obs.len(),
+            });
         }
         for (i, slot) in self.slots.iter_mut().enumerate() {
-            slot.env.restore(&state.envs[i]).map_err(|e| format!("env {i}: {e}"))?;
+            slot.env.restore(&state.envs[i]).map_err(|e| StateError::Env { index: i, source: Box::new(e) })?;
             slot.rng = state.rngs[i].clone();
             let (ret, len, terms) = &state.running[i];
             slot.running = EpisodeStats {

@@ -1,7 +1,7 @@
 //! PPO with the hybrid head learns a contextual choice with a continuous target, and never
 //! picks an option the environment masks out.
 
-use repertoire_learn::env::{Env, EnvRng, MAX_TERMS, StepOutcome};
+use repertoire_learn::env::{Env, EnvRng, MAX_TERMS, StateError, StepOutcome};
 use repertoire_learn::policy::PolicyConfig;
 use repertoire_learn::ppo::{Ppo, PpoConfig};
 
@@ -52,7 +52,7 @@ impl Env for Choice {
     fn snapshot(&self) -> Vec<f64> {
         vec![f64::from(u8::from(self.context_b))]
     }
-    fn restore(&mut self, state: &[f64]) -> Result<(), String> {
+    fn restore(&mut self, state: &[f64]) -> Result<(), StateError> {
         self.context_b = state.first().copied().unwrap_or(0.0) != 0.0;
         Ok(())
     }

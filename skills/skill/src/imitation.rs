@@ -7,7 +7,7 @@ use std::sync::Arc;
 
 use rand::{Rng, SeedableRng};
 use repertoire_humanoid::{Task, TaskStep};
-use repertoire_learn::env::{EnvRng, MAX_TERMS};
+use repertoire_learn::env::{EnvRng, MAX_TERMS, StateError};
 use repertoire_scenes::World;
 use repertoire_scenes::math::wrap_angle;
 use repertoire_scenes::world::spawn_point;
@@ -794,9 +794,9 @@ impl Task for ImitationTask {
         ]);
     }
 
-    fn restore(&mut self, s: &[f64]) -> Result<(), String> {
+    fn restore(&mut self, s: &[f64]) -> Result<(), StateError> {
         if s.len() != 14 {
-            return Err(format!("imitation task snapshot has {} values, expected 14", s.len()));
+            return Err(StateError::length("imitation task snapshot", 14, s.len()));
         }
         self.phase = s[0] as usize;
         self.cycles = s[1] as usize;
@@ -810,7 +810,12 @@ impl Task for ImitationTask {
         self.held = s[12] as usize;
         self.target_steps = s[13] as usize;
         if self.phase >= self.settings.reference.frames() {
-            return Err(format!("phase {} is past the clip's {} frames", self.phase, self.settings.reference.frames()));
+            return Err(StateError::OutOfRange {
+                what: "imitation task snapshot's phase".into(),
+                value: s[0],
+                count: self.settings.reference.frames(),
+                of: "clip frames",
+            });
         }
         Ok(())
     }

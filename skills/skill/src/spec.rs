@@ -498,7 +498,7 @@ impl Obstacle {
     }
 }
 
-/// A skill spec, as written in `skills/skill/specs/*.ron`.
+/// A skill spec, as written in `specs/*.ron`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SkillSpec {

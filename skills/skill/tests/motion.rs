@@ -11,11 +11,11 @@ use repertoire_skill::motion::{MotionMeter, reference_quality};
 use repertoire_skill::{SkillSetup, SpecFile};
 
 fn specs() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("specs")
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../specs")
 }
 
 fn shipped_library() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../library")
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../library")
 }
 
 fn setup(spec: &str) -> SkillSetup {

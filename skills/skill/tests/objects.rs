@@ -13,7 +13,7 @@ use repertoire_skill::train::{TrainOptions, train};
 use repertoire_skill::{SkillSetup, SpecFile, library};
 
 fn specs() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("specs")
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../specs")
 }
 
 fn temp(name: &str) -> PathBuf {

@@ -15,7 +15,7 @@ use repertoire_skill::train::{TrainOptions, train};
 use repertoire_skill::{SkillSetup, SpecFile};
 
 fn specs() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("specs")
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../specs")
 }
 
 fn temp(name: &str) -> PathBuf {
@@ -34,7 +34,7 @@ fn setup(spec: &str, library: &Path) -> SkillSetup {
 fn every_shipped_spec_builds() {
     // Experiments and variants sit beside the library's specs; none may rot. Specs that start
     // from predecessors' pools (sit_from_wide) read them from the committed library.
-    let library = Path::new(env!("CARGO_MANIFEST_DIR")).join("../library");
+    let library = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../library");
     let mut built = Vec::new();
     for entry in std::fs::read_dir(specs()).unwrap() {
         let path = entry.unwrap().path();
@@ -843,7 +843,7 @@ fn a_skill_grown_from_another_acts_as_it_until_trained_and_keeps_its_lineage() {
 #[test]
 fn the_stand_pays_fully_for_standing_still_and_little_for_moving() {
     // `stand.ron`: a still clip, so walk stage one's root-velocity match pays for being at rest.
-    let s = setup("stand.ron", &Path::new(env!("CARGO_MANIFEST_DIR")).join("../library"));
+    let s = setup("stand.ron", &Path::new(env!("CARGO_MANIFEST_DIR")).join("../../library"));
     let r = &s.settings.reference;
     assert!(r.velocity.iter().all(|v| v.iter().all(|c| c.abs() < 1e-9)), "the stand's clip moves");
     let mut env = s.env();
@@ -864,7 +864,7 @@ fn the_stand_pays_fully_for_standing_still_and_little_for_moving() {
 
 #[test]
 fn walk_around_sees_the_chair_put_in_its_way_and_a_touch_ends_the_episode() {
-    let library = Path::new(env!("CARGO_MANIFEST_DIR")).join("../library");
+    let library = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../library");
     let s = setup("walk_around.ron", &library);
     let walk_to = setup("walk_to.ron", &library);
     let chair = s.settings.obstacle.as_ref().expect("walk_around has an obstacle").0;
@@ -949,7 +949,7 @@ fn walk_around_sees_the_chair_put_in_its_way_and_a_touch_ends_the_episode() {
 #[test]
 fn a_delivered_seat_puts_the_chair_where_the_controller_left_it_for_a_skill_without_a_seat_goal() {
     // stand_handover.ron: the stand in the sitting scene, the chair following delivered states.
-    let library = Path::new(env!("CARGO_MANIFEST_DIR")).join("../library");
+    let library = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../library");
     let dir = temp("delivered-seat");
     let s = setup("stand_handover.ron", &library);
     let chair = s.settings.delivered_seat.expect("stand_handover names the chair");

@@ -25,10 +25,10 @@ use super::controller::{GraphArgs, ScenarioArgs};
 pub mod eval;
 
 /// The committed skill library and meta-controller.
-pub const DEFAULT_LIBRARY: &str = "skills/library";
+pub const DEFAULT_LIBRARY: &str = "library";
 
 /// The meta-controller folder of a scenario when none is given, inside the skill library it
-/// runs over: `LIBRARY/meta` for sitting (the committed `skills/library/meta`),
+/// runs over: `LIBRARY/meta` for sitting (the committed `library/meta`),
 /// `LIBRARY/meta-<scenario name>` for other tasks (so they never overwrite it). A controller
 /// trained over a copy of the library stays with that copy.
 pub fn default_meta(library: &Path, task: &repertoire_scenes::scenario::Task, name: &str) -> PathBuf {
@@ -102,7 +102,7 @@ pub struct RunArgs {
     /// Open every zone from the start (the "no curriculum" ablation).
     #[arg(long)]
     no_curriculum: bool,
-    /// Start from a trained controller (a folder with meta.ron, e.g. skills/library/meta)
+    /// Start from a trained controller (a folder with meta.ron, e.g. library/meta)
     /// instead of fresh networks: a new run over the same skills, with a fresh optimiser,
     /// learning-rate schedule and curriculum (add --no-curriculum to keep every zone open).
     /// Its critic comes along when it saved one (meta.critic.safetensors).
@@ -179,7 +179,7 @@ pub struct TrainArgs {
     #[command(flatten)]
     pub graph: GraphArgs,
     /// Drive this latent model's decoder instead of the skills (overrides the scenario's
-    /// `low_level`; e.g. skills/library/latent).
+    /// `low_level`; e.g. library/latent).
     #[arg(long)]
     pub latent: Option<PathBuf>,
     /// Latent low level: control ticks each z is held.
@@ -288,7 +288,7 @@ pub struct DeliverArgs {
     #[command(flatten)]
     pub scenario: ScenarioArgs,
     /// The skill's spec (for a sit, its clip says where the seat is expected).
-    #[arg(long, default_value = "skills/skill/specs/sit.ron")]
+    #[arg(long, default_value = "specs/sit.ron")]
     pub spec: PathBuf,
     /// The controller (default: as `meta train` writes it).
     #[arg(long)]
@@ -329,7 +329,7 @@ pub struct DeliverArgs {
 /// `meta refine`'s arguments.
 #[derive(Debug, clap::Args)]
 pub struct RefineArgs {
-    /// Scenario RON file (default: the built-in scenes/sit.ron).
+    /// Scenario RON file (default: the built-in scenarios/sit.ron).
     pub file: Option<PathBuf>,
     /// The skill's spec (its reward, actions and training settings).
     #[arg(long)]

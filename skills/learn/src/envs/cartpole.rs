@@ -9,7 +9,7 @@ use std::sync::Arc;
 use mujoco_rs::prelude::*;
 use rand::Rng;
 
-use crate::env::{Env, EnvRng, MAX_TERMS, StepOutcome};
+use crate::env::{Env, EnvRng, MAX_TERMS, StateError, StepOutcome};
 
 /// The MJCF model: a 1 kg cart on a frictionless slider and a 1 m, 0.1 kg pole on a hinge.
 pub const CARTPOLE_XML: &str = r#"
@@ -119,9 +119,9 @@ impl Env for CartPole {
         s
     }
 
-    fn restore(&mut self, state: &[f64]) -> Result<(), String> {
+    fn restore(&mut self, state: &[f64]) -> Result<(), StateError> {
         if state.len() != 6 {
-            return Err(format!("cart-pole state has 6 numbers, got {}", state.len()));
+            return Err(StateError::length("cart-pole state", 6, state.len()));
         }
         self.data.reset();
         self.data.set_time(state[0]);

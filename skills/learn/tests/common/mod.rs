@@ -4,7 +4,7 @@
 use std::sync::Arc;
 
 use mujoco_rs::prelude::MjModel;
-use repertoire_learn::env::{Env, EnvRng, MAX_TERMS, StepOutcome};
+use repertoire_learn::env::{Env, EnvRng, MAX_TERMS, StateError, StepOutcome};
 use repertoire_learn::envs::cartpole::{CARTPOLE_XML, CartPole};
 use repertoire_learn::policy::PolicyConfig;
 use repertoire_learn::ppo::PpoConfig;
@@ -81,9 +81,9 @@ impl Env for Drift {
     fn snapshot(&self) -> Vec<f64> {
         vec![self.x, f64::from(self.steps)]
     }
-    fn restore(&mut self, state: &[f64]) -> Result<(), String> {
+    fn restore(&mut self, state: &[f64]) -> Result<(), StateError> {
         let [x, s] = state else {
-            return Err(format!("expected 2 numbers, got {}", state.len()));
+            return Err(StateError::length("drift state", 2, state.len()));
         };
         self.x = *x;
         self.steps = *s as u32;
