@@ -59,6 +59,13 @@ fn replay_page_draws_plays_and_logs_no_error() {
     let stderr = String::from_utf8_lossy(&check.stderr);
     assert!(check.status.success(), "the replay page failed in Chromium:\n{stderr}\n{stdout}");
     assert!(std::fs::metadata(&shot).is_ok_and(|m| m.len() > 10_000), "no screenshot at {}", shot.display());
+    // The sit starts standing where a turn left the body: both feet are on the floor in some
+    // frames, and the page counted them (format 2 records the feet's contact).
+    let feet = stdout
+        .split_once("\"foot_frames\":[")
+        .and_then(|(_, rest)| rest.split_once(']'))
+        .map(|(list, _)| list.split(',').map(|n| n.trim().parse::<usize>().unwrap_or(0)).collect::<Vec<_>>());
+    assert!(feet.as_ref().is_some_and(|f| f.len() == 2 && f.iter().all(|&n| n > 0)), "foot frames {feet:?}: {stdout}");
     println!("{stdout}screenshot: {}", shot.display());
 }
 

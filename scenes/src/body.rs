@@ -369,6 +369,9 @@ pub struct BodyIndex {
     pub floor_ok: Vec<bool>,
     /// Per model body: 0 for the left hand subtree, 1 for the right, none otherwise.
     pub hand_of: Vec<Option<usize>>,
+    /// Per model body: 0 for the left foot subtree (toes included), 1 for the right, none
+    /// otherwise.
+    pub foot_of: Vec<Option<usize>>,
     /// sensordata addresses of the foot touch sensors.
     pub foot_touch: Vec<usize>,
     /// sensordata addresses of the hand touch sensors.
@@ -427,6 +430,7 @@ impl BodyIndex {
         }
         let floor_ok = (0..nbody).map(|b| allowed.iter().any(|&a| in_subtree(b, a))).collect();
         let hand_of = (0..nbody).map(|b| (0..2).find(|&side| in_subtree(b, hands[side]))).collect();
+        let foot_of = (0..nbody).map(|b| (0..2).find(|&side| in_subtree(b, feet[side]))).collect();
 
         let trn_type = model.actuator_trntype();
         let trn_id = model.actuator_trnid();
@@ -542,6 +546,7 @@ impl BodyIndex {
             is_character,
             floor_ok,
             hand_of,
+            foot_of,
             foot_touch,
             hand_touch,
             grip: crate::compose::GRIP_ACTUATORS
@@ -585,6 +590,8 @@ mod tests {
         assert!(index.is_character[index.pelvis] && !index.is_character[0]);
         assert!(index.floor_ok[index.feet[0]] && !index.floor_ok[index.pelvis]);
         assert_eq!(index.hand_of[index.hands[1]], Some(1));
+        assert_eq!(index.foot_of[index.feet[0]], Some(0));
+        assert_eq!(index.foot_of[index.pelvis], None);
         assert_eq!(index.foot_touch.len(), 2);
     }
 

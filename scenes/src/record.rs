@@ -8,11 +8,13 @@
 //! ```text
 //! b"REPREC\x01\n"  u32 header length  header (JSON)
 //! time f64[n]  qpos f64[n·nq]  poses f32[n·bodies·7]  ghost f32[n·character·7] (empty without one)
-//! skill i32[n]  phase f32[n]  terms f32[n·terms]  contacts u64[n·5]  fall u8[n]
+//! skill i32[n]  phase f32[n]  terms f32[n·terms]  contacts u64[n·6]  fall u8[n]
 //! FNV-1a 64 of everything before it
 //! ```
 //!
-//! all little-endian; a pose is `x y z qw qx qy qz` in the world frame; `fall` is the fall
+//! all little-endian; a pose is `x y z qw qx qy qz` in the world frame; a frame's contacts are
+//! pelvis_on, hand_on ×2, character_on, prop_on_floor (bit sets over props) and feet_on_floor
+//! (bit 0 left, bit 1 right; format 1 files have the first five only); `fall` is the fall
 //! test's verdict so far ([`crate::fall`]): 0 none, else [`FallCause::code`] (files written
 //! before the shared fall test hold 1 wherever a part not allowed on the floor touched it). A 20 s rollout of the
 //! built-in humanoid at 60 Hz with a ghost is about 1.5 MB.
@@ -29,12 +31,15 @@ use crate::world::{Contacts, World, WorldModel};
 
 /// The file's first bytes.
 pub const MAGIC: &[u8; 8] = b"REPREC\x01\n";
-/// Version of the header's layout.
-pub const FORMAT: u32 = 1;
+/// Version of the layout: 2 added the feet's floor contact (format 1 is still read).
+pub const FORMAT: u32 = 2;
 /// Numbers per pose: position then quaternion (w x y z).
 pub const POSE: usize = 7;
-/// u64 words of [`Contacts`] per frame (pelvis_on, hand_on ×2, character_on, prop_on_floor).
-const CONTACT_WORDS: usize = 5;
+/// u64 words of [`Contacts`] per frame in a file of `format` (pelvis_on, hand_on ×2,
+/// character_on, prop_on_floor, and from format 2 feet_on_floor).
+fn contact_words(format: u32) -> usize {
+    if format >= 2 { 6 } else { 5 }
+}
 
 /// How a geom is drawn.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -125,6 +130,9 @@ pub struct Header {
     pub props: Vec<(String, usize)>,
     /// The character's root body (pelvis), index into `bodies`.
     pub root: usize,
+    /// The character's feet (left, right), indices into `bodies` (format 2 on).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub feet: Option<[usize; 2]>,
     /// Names a frame's skill index refers to.
     pub skills: Vec<String>,
     /// Names of the per-frame terms (reward terms, distances, ...).
@@ -154,7 +162,7 @@ impl Header {
             .checked_add(8usize.checked_mul(self.nq)?)?
             .checked_add(4 * POSE * self.bodies.len().checked_add(self.ghost_bodies())?)?
             .checked_add(4 + 4 + 4usize.checked_mul(self.terms.len())?)?
-            .checked_add(8 * CONTACT_WORDS + 1)?;
+            .checked_add(8 * contact_words(self.format) + 1)?;
         n.checked_mul(per_frame)
     }
 }
@@ -295,6 +303,7 @@ pub fn header_of(model: &WorldModel, options: &RecordOptions) -> Header {
         geoms,
         props: model.props.iter().map(|p| (p.name.clone(), p.body - 1)).collect(),
         root: model.index.pelvis - 1,
+        feet: Some(model.index.feet.map(|b| b - 1)),
         skills: options.skills.clone(),
         terms: options.terms.clone(),
         phase: options.phase.clone(),
@@ -455,8 +464,10 @@ impl Recording {
 
     /// The file's bytes (see the module documentation).
     pub fn to_bytes(&self) -> Vec<u8> {
-        let header = serde_json::to_vec(&self.header).expect("a header is plain data");
-        let data = self.header.data_len().unwrap_or(0);
+        // Written in this build's format, whatever the file it was read from.
+        let header = Header { format: FORMAT, ..self.header.clone() };
+        let data = header.data_len().unwrap_or(0);
+        let header = serde_json::to_vec(&header).expect("a header is plain data");
         let mut out = Vec::with_capacity(MAGIC.len() + 4 + header.len() + data + 8);
         out.extend_from_slice(MAGIC);
         out.extend_from_slice(&(header.len() as u32).to_le_bytes());
@@ -469,7 +480,8 @@ impl Recording {
         self.phase.iter().for_each(|v| out.extend_from_slice(&v.to_le_bytes()));
         self.terms.iter().for_each(|v| out.extend_from_slice(&v.to_le_bytes()));
         for c in &self.contacts {
-            for w in [c.pelvis_on, c.hand_on[0], c.hand_on[1], c.character_on, c.prop_on_floor] {
+            let feet = u64::from(c.feet_on_floor[0]) | u64::from(c.feet_on_floor[1]) << 1;
+            for w in [c.pelvis_on, c.hand_on[0], c.hand_on[1], c.character_on, c.prop_on_floor, feet] {
                 out.extend_from_slice(&w.to_le_bytes());
             }
         }
@@ -504,8 +516,8 @@ impl Recording {
             .ok_or_else(|| format!("cut short: the header says it is {len} bytes, {} bytes follow", rest.len()))?;
         let header: Header = serde_json::from_slice(header)
             .map_err(|e| format!("header line {} column {}: {e}", e.line(), e.column()))?;
-        if header.format != FORMAT {
-            return Err(format!("recording format {} (this build reads format {FORMAT})", header.format));
+        if !(1..=FORMAT).contains(&header.format) {
+            return Err(format!("recording format {} (this build reads formats 1 to {FORMAT})", header.format));
         }
         let want = header.data_len().ok_or("the header's sizes overflow")?;
         if data.len() != want + 8 {
@@ -541,17 +553,22 @@ impl Recording {
         let skill = take(n, 4).chunks_exact(4).map(|c| i32::from_le_bytes(c.try_into().expect("4"))).collect();
         let phase: Vec<f32> = f32s(take(n, 4));
         let terms: Vec<f32> = f32s(take(n * header.terms.len(), 4));
-        let words = u64s(take(n * CONTACT_WORDS, 8));
+        let words_per_frame = contact_words(header.format);
+        let words = u64s(take(n * words_per_frame, 8));
         let fall = take(n, 1).to_vec();
         let contacts = words
-            .chunks_exact(CONTACT_WORDS)
+            .chunks_exact(words_per_frame)
             .zip(&fall)
-            .map(|(w, &f)| Contacts {
-                fallen: f != 0,
-                pelvis_on: w[0],
-                hand_on: [w[1], w[2]],
-                character_on: w[3],
-                prop_on_floor: w[4],
+            .map(|(w, &f)| {
+                let feet = w.get(5).copied().unwrap_or(0);
+                Contacts {
+                    fallen: f != 0,
+                    pelvis_on: w[0],
+                    hand_on: [w[1], w[2]],
+                    character_on: w[3],
+                    prop_on_floor: w[4],
+                    feet_on_floor: [feet & 1 != 0, feet & 2 != 0],
+                }
             })
             .collect();
         let rec = Recording { header, time, qpos, poses, ghost, skill, phase, terms, contacts, fall };

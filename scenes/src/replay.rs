@@ -93,6 +93,11 @@ fn page_data(rec: &Recording) -> String {
         // The first prop whose key geom (a chair's seat, a pedestal's top, a box) the pelvis
         // touches, + 1 (0: none), so the page can name it.
         "pelvis_on": base64(&rec.contacts.iter().map(|c| first_prop(c.pelvis_on)).collect::<Vec<u8>>()),
+        // Which feet touch the floor (bit 0 left, bit 1 right); absent for format 1 files,
+        // which did not record it.
+        "feet": (rec.header.format >= 2).then(|| base64(
+            &rec.contacts.iter().map(|c| u8::from(c.feet_on_floor[0]) | u8::from(c.feet_on_floor[1]) << 1).collect::<Vec<u8>>()
+        )),
         "fall_causes": crate::fall::FallCause::ALL.map(|c| c.name()),
     });
     // `<` only occurs inside JSON strings, where \u003c reads the same.

@@ -1239,6 +1239,9 @@ impl World {
                     if idx.is_character[b] && !idx.floor_ok[b] {
                         out.fallen = true;
                     }
+                    if let Some(side) = idx.foot_of[b] {
+                        out.feet_on_floor[side] = true;
+                    }
                     if let Some(p) = shared.geom_prop[g] {
                         out.prop_on_floor |= 1 << p.min(63);
                     }
@@ -1328,6 +1331,8 @@ pub struct Contacts {
     pub character_on: u64,
     /// Props touching the floor.
     pub prop_on_floor: u64,
+    /// Which feet (left, right; toes included) touch the floor.
+    pub feet_on_floor: [bool; 2],
 }
 
 impl Contacts {

@@ -64,6 +64,16 @@ fn a_rollout_round_trips_exactly() {
     let back = Recording::load(&path).expect("load");
     assert!(back.header == rec.header, "the header changed on the way");
     assert!(back == rec, "the frames changed on the way");
+    // The body holds a pose standing: both feet on the floor from the first step on (it is
+    // placed a hair above the floor), kept in the file.
+    let on: Vec<_> = back.contacts.iter().map(|c| c.feet_on_floor).collect();
+    assert!(on[1..].iter().all(|&f| f == [true, true]), "the feet's floor contact {on:?}");
+    let feet = back.header.feet.expect("format 2 names the feet");
+    assert!(
+        feet.iter().all(|&b| back.header.bodies[b].name.contains("foot")),
+        "{:?}",
+        feet.map(|b| &back.header.bodies[b].name)
+    );
     // 41 frames of a 15-body character plus a chair, with a ghost: a few tens of kB.
     let size = std::fs::metadata(&path).unwrap().len();
     assert!(size < 100_000, "{size} bytes");

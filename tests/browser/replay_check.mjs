@@ -4,7 +4,8 @@
 // - the canvas is drawn (the screenshot of the 3-D view has many distinct colours);
 // - playback advances (window.__replay.frame moves on while playing);
 // - for each FRAME TEXT pair, the overlay shows TEXT once the slider is moved to FRAME.
-// - the timeline: slider and skill strip aligned, every legend entry shown, a fall in red.
+// - the timeline: slider and skill strip aligned, every legend entry shown, a fall in red, each
+//   foot's floor contact in its gait lane.
 // Opens Chromium through scenes/web/chromium.mjs. Prints one JSON line of measurements; exits 1
 // with the reason on failure.
 
@@ -90,6 +91,14 @@ try {
     for (let i = 0; i < px.length; i += 4) if (px[i] === 255 && px[i + 1] === 32 && px[i + 2] === 32) red++;
     out.fall_frames = hook.fall_frames;
     out.red_pixels = red;
+    // The gait lanes: the left foot's floor contact at rows 1–2 of the strip, the right's at 4–5.
+    out.foot_frames = hook.foot_frames;
+    out.foot_lane_pixels = [1, 4].map((y) => {
+      const row = strip.getContext('2d').getImageData(0, y, strip.width, 1).data;
+      let n = 0;
+      for (let i = 0; i < row.length; i += 4) if (row[i] === 244 && row[i + 1] === 244 && row[i + 2] === 244) n++;
+      return n;
+    });
     return out;
   });
   const L = result.layout;
@@ -103,6 +112,13 @@ try {
   }
   if (L.legend.cut > 0) problems.push(`${L.legend.cut} of ${L.legend.items} legend entries are cut off`);
   if (L.fall_frames > 0 && L.red_pixels === 0) problems.push('a fall is recorded and the strip shows no red');
+  if (L.foot_frames) {
+    [0, 1].forEach((s) => {
+      if (L.foot_frames[s] > 0 && L.foot_lane_pixels[s] === 0) {
+        problems.push(`the ${s ? 'right' : 'left'} foot touches the floor in ${L.foot_frames[s]} frames and its gait lane is empty`);
+      }
+    });
+  }
   // The overlay at given frames: the slider moved there as a user would.
   result.overlay = {};
   for (let i = 0; i < expect.length; i += 2) {

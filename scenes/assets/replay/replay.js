@@ -49,6 +49,11 @@ const pelvisLabel = (f) => {
   return p && H.props[p - 1] ? `pelvis on ${H.props[p - 1][0]}` : 'pelvis on a prop';
 };
 hook.fall_frames = fallCode.reduce((n, c) => n + (c ? 1 : 0), 0);
+// Which feet touch the floor per frame (bit 0 left, bit 1 right); null for recordings made
+// before it was recorded (format 1).
+const feet = data.feet ? decode(data.feet, Uint8Array) : null;
+hook.foot_frames = feet ? [0, 1].map((s) => feet.reduce((n, v) => n + ((v >> s) & 1), 0)) : null;
+const feetText = (f) => (feet ? `   feet ${feet[f] & 1 ? 'L' : '·'} ${feet[f] & 2 ? 'R' : '·'}` : '');
 const fallCause = (f) => (fallCode[f] ? (data.fall_causes || [])[fallCode[f] - 1] || 'fall' : '');
 const NT = H.terms.length;
 const character = H.bodies.map((b, i) => (b.character ? i : -1)).filter((i) => i >= 0);
@@ -228,6 +233,13 @@ function drawStrip(frame) {
     const f = Math.min(N - 1, Math.max(0, Math.floor(((x - THUMB_INSET) / span) * N)));
     ctx.fillStyle = skillColor(skill[f]);
     ctx.fillRect(x, 0, 1, h - 4);
+    // A gait diagram over the skill colours: the left foot's floor contact in the top lane,
+    // the right foot's in the lane below.
+    if (feet) {
+      ctx.fillStyle = '#f4f4f4';
+      if (feet[f] & 1) ctx.fillRect(x, 1, 1, 2);
+      if (feet[f] & 2) ctx.fillRect(x, 4, 1, 2);
+    }
     // A fall covers the lower half of the strip in hatched red from the frame it counted on, so
     // it reads apart from any skill colour; seat contact is the green line under the strip.
     if (fallCode[f]) {
@@ -269,7 +281,28 @@ const termRows = H.terms.map((name) => {
 
 // Ghost placement: beside = 1 m to the left of where the reference stands.
 const ghostOffset = new THREE.Vector3();
+// A footprint on the floor under each foot while it touches the floor.
+const footprints = [0, 1].map(() => {
+  const m = new THREE.Mesh(
+    new THREE.CircleGeometry(0.07, 24),
+    new THREE.MeshBasicMaterial({ color: 0x7cff7c, transparent: true, opacity: 0.55, depthWrite: false }),
+  );
+  m.visible = false;
+  scene.add(m);
+  return m;
+});
+function placeFeet(f) {
+  footprints.forEach((m, s) => {
+    const b = H.feet ? H.feet[s] : -1;
+    m.visible = !!feet && b >= 0 && (feet[f] >> s) % 2 === 1;
+    if (m.visible) {
+      const k = (f * NB + b) * P;
+      m.position.set(poses[k], poses[k + 1], 0.003);
+    }
+  });
+}
 function placeFrame(f) {
+  placeFeet(f);
   for (let b = 0; b < NB; b++) {
     const g = bodies[b];
     if (!g) continue;
@@ -311,7 +344,7 @@ function overlay(f) {
   ui('info').textContent =
     `t ${time[f].toFixed(2)} s   frame ${f + 1}/${N}\n` +
     `skill ${s < 0 ? '—' : H.skills[s]}   ${H.phase || 'phase'} ${phase[f].toFixed(0)}\n` +
-    `contacts ${contacts}` + (hasGhost ? `\nghost: ${H.ghost}` : '');
+    `contacts ${contacts}${feetText(f)}` + (hasGhost ? `\nghost: ${H.ghost}` : '');
   termRows.forEach((tr, k) => {
     const v = terms[f * NT + k];
     tr.children[1].textContent = v.toFixed(3);
