@@ -40,6 +40,17 @@ pub enum ClipError {
         /// What is wrong.
         message: String,
     },
+    /// A joint-positions declaration (`NAME.joints.ron`) that parses but does not fit: parents
+    /// out of order, a joint named twice, a member the `.npz` does not hold.
+    #[error("{}: {message}", at(file, loc))]
+    Positions {
+        /// The declaration.
+        file: PathBuf,
+        /// Where the offending value is.
+        loc: Option<Location>,
+        /// What is wrong.
+        message: String,
+    },
     /// A clip that cannot be used: a NaN or infinite frame, fewer than 2 frames, a qpos width
     /// that differs from the body's, a malformed .npy file.
     #[error("{origin}: {message}")]

@@ -156,6 +156,14 @@ pub fn npy_bytes(values: &[f64], rows: usize, cols: usize) -> Vec<u8> {
 
 /// Parses a `.npy` file holding a 2-D little-endian f64 C-order array: `(rows, cols, values)`.
 pub fn parse_npy(bytes: &[u8]) -> std::result::Result<(usize, usize, Vec<f64>), String> {
+    let (dims, values) = parse_npy_array(bytes)?;
+    let [rows, cols] = dims[..] else { return Err(format!("expected a 2-D array, shape is {dims:?}")) };
+    Ok((rows, cols, values))
+}
+
+/// Parses a `.npy` file of a little-endian C-order `f8` or `f4` array of any shape: `(shape,
+/// values)`, the values as f64.
+pub fn parse_npy_array(bytes: &[u8]) -> std::result::Result<(Vec<usize>, Vec<f64>), String> {
     let rest = bytes.strip_prefix(b"\x93NUMPY").ok_or("not a .npy file (bad magic)")?;
     let (major, rest) = rest.split_first().ok_or("truncated header")?;
     let (_minor, rest) = rest.split_first().ok_or("truncated header")?;
@@ -173,9 +181,13 @@ pub fn parse_npy(bytes: &[u8]) -> std::result::Result<(usize, usize, Vec<f64>), 
     let (header, data) = rest.split_at_checked(len).ok_or("truncated header")?;
     let header = std::str::from_utf8(header).map_err(|_| "header is not text")?;
     let compact: String = header.chars().filter(|c| !c.is_whitespace()).collect();
-    if !compact.contains("'descr':'<f8'") {
-        return Err(format!("expected little-endian f64 ('<f8'), header is {}", header.trim()));
-    }
+    let width = if compact.contains("'descr':'<f8'") {
+        8
+    } else if compact.contains("'descr':'<f4'") {
+        4
+    } else {
+        return Err(format!("expected little-endian f64 or f32 ('<f8', '<f4'), header is {}", header.trim()));
+    };
     if !compact.contains("'fortran_order':False") {
         return Err("Fortran-order arrays are not supported".into());
     }
@@ -189,14 +201,16 @@ pub fn parse_npy(bytes: &[u8]) -> std::result::Result<(usize, usize, Vec<f64>), 
         .filter(|s| !s.is_empty())
         .map(|s| s.parse().map_err(|_| format!("bad shape `{shape}`")))
         .collect::<std::result::Result<_, _>>()?;
-    let [rows, cols] = dims[..] else { return Err(format!("expected a 2-D array, shape is ({shape})")) };
-    let count = rows.checked_mul(cols).ok_or("shape overflows")?;
-    if data.len() != count * 8 {
-        return Err(format!("shape ({rows}, {cols}) needs {} bytes of data, found {}", count * 8, data.len()));
+    let count = dims.iter().try_fold(1usize, |n, &d| n.checked_mul(d)).ok_or("shape overflows")?;
+    if data.len() != count * width {
+        return Err(format!("shape {dims:?} needs {} bytes of data, found {}", count * width, data.len()));
     }
-    let values =
-        data.chunks_exact(8).map(|c| f64::from_le_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]])).collect();
-    Ok((rows, cols, values))
+    let values = if width == 8 {
+        data.chunks_exact(8).map(|c| f64::from_le_bytes(c.try_into().expect("8 bytes"))).collect()
+    } else {
+        data.chunks_exact(4).map(|c| f64::from(f32::from_le_bytes(c.try_into().expect("4 bytes")))).collect()
+    };
+    Ok((dims, values))
 }
 
 #[cfg(test)]

@@ -23,6 +23,7 @@ pub mod io;
 pub mod keyframe;
 pub mod map;
 pub mod math;
+pub mod positions;
 pub mod retarget;
 pub mod source;
 

@@ -18,6 +18,8 @@ pub enum SourceFormat {
     AsfAmc,
     /// DeepMimic JSON motion (humanoid3d layout).
     DeepMimic,
+    /// Joint positions (`.npy`/`.npz` with a `.joints.ron` declaration; [`crate::positions`]).
+    Positions,
 }
 
 impl SourceFormat {
@@ -27,6 +29,7 @@ impl SourceFormat {
             SourceFormat::Bvh => "BVH",
             SourceFormat::AsfAmc => "ASF/AMC",
             SourceFormat::DeepMimic => "DeepMimic",
+            SourceFormat::Positions => "joint-positions",
         }
     }
 }
@@ -296,13 +299,14 @@ impl LoadedMap {
 }
 
 /// The maps shipped in `skills/clip/maps/`, compiled in.
-pub const SHIPPED: [(&str, &str); 6] = [
+pub const SHIPPED: [(&str, &str); 7] = [
     ("cmu-subject16.bvh.ron", include_str!("../maps/cmu-subject16.bvh.ron")),
     ("cmu-cgspeed.bvh.ron", include_str!("../maps/cmu-cgspeed.bvh.ron")),
     ("cmu-retargeted16.bvh.ron", include_str!("../maps/cmu-retargeted16.bvh.ron")),
     ("mocapbank.bvh.ron", include_str!("../maps/mocapbank.bvh.ron")),
     ("cmu.asf.ron", include_str!("../maps/cmu.asf.ron")),
     ("deepmimic-humanoid3d.ron", include_str!("../maps/deepmimic-humanoid3d.ron")),
+    ("smpl22.positions.ron", include_str!("../maps/smpl22.positions.ron")),
 ];
 
 /// The shipped maps, parsed.

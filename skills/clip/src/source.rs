@@ -23,6 +23,14 @@ pub enum ClipSource {
     DeepMimic(PathBuf),
     /// A keyframe clip (`.ron`).
     Keyframes(PathBuf),
+    /// Joint positions (`.npy`, or an `.npz` member) with their declaration
+    /// ([`crate::positions`]).
+    Positions {
+        /// The array.
+        array: PathBuf,
+        /// What it holds (`NAME.joints.ron`).
+        declaration: PathBuf,
+    },
 }
 
 impl ClipSource {
@@ -63,9 +71,22 @@ impl ClipSource {
             }
             "txt" | "json" => ClipSource::DeepMimic(file.to_path_buf()),
             "ron" => ClipSource::Keyframes(file.to_path_buf()),
+            "npy" | "npz" => {
+                let declaration = crate::positions::declaration_path(file);
+                if !declaration.exists() {
+                    return Err(ClipError::Usage(format!(
+                        "{}: a joint-positions array needs a declaration of its joints, parents, rate and unit \
+                         beside it: {} (see docs/cli.md, joint-position clips)",
+                        file.display(),
+                        declaration.display()
+                    )));
+                }
+                ClipSource::Positions { array: file.to_path_buf(), declaration }
+            }
             _ => {
                 return Err(ClipError::Usage(format!(
-                    "{}: unknown clip type `.{ext}`; expected .bvh, .amc (+ .asf), DeepMimic .txt/.json or keyframe .ron",
+                    "{}: unknown clip type `.{ext}`; expected .bvh, .amc (+ .asf), DeepMimic .txt/.json, joint positions \
+                     .npy/.npz (+ .joints.ron) or keyframe .ron",
                     file.display()
                 )));
             }
@@ -77,6 +98,7 @@ impl ClipSource {
         match self {
             ClipSource::Bvh(p) | ClipSource::DeepMimic(p) | ClipSource::Keyframes(p) => p,
             ClipSource::AsfAmc { amc, .. } => amc,
+            ClipSource::Positions { array, .. } => array,
         }
     }
 
@@ -86,6 +108,7 @@ impl ClipSource {
             ClipSource::Bvh(_) => Some(SourceFormat::Bvh),
             ClipSource::AsfAmc { .. } => Some(SourceFormat::AsfAmc),
             ClipSource::DeepMimic(_) => Some(SourceFormat::DeepMimic),
+            ClipSource::Positions { .. } => Some(SourceFormat::Positions),
             ClipSource::Keyframes(_) => None,
         }
     }
@@ -101,6 +124,7 @@ pub fn import(source: &ClipSource, map: Option<LoadedMap>) -> Result<(repertoire
             read_amc(amc, &asf, &AmcOptions::default())?
         }
         ClipSource::DeepMimic(p) => read_deepmimic(p, &DeepMimicLayout::humanoid3d())?,
+        ClipSource::Positions { array, declaration } => crate::positions::read(array, declaration)?,
         ClipSource::Keyframes(p) => {
             return Err(ClipError::Usage(format!("{}: a keyframe clip is not motion capture", p.display())));
         }

@@ -37,11 +37,14 @@ pub struct SkillSetup {
 }
 
 /// Imports any clip file the project reads onto `body`: a retargeted clip (`.clip.ron`,
-/// `.npy`), a keyframe clip (`.ron`), or mocap (BVH, ASF/AMC, DeepMimic) retargeted with the
-/// shipped map (or `map`).
+/// `.npy` with its `.meta.ron`), a keyframe clip (`.ron`), or mocap (BVH, ASF/AMC, DeepMimic,
+/// joint positions: `.npy`/`.npz` with a `.joints.ron`) retargeted with the shipped map (or `map`).
 pub fn load_clip(path: &Path, map: Option<&Path>, body: &ClipBody) -> Result<Clip> {
     let name = path.file_name().map(|n| n.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
-    if name.ends_with(".clip.ron") || name.ends_with(".npy") {
+    let positions = name.ends_with(".npy")
+        && !repertoire_clip::io::sidecar(path).exists()
+        && repertoire_clip::positions::declaration_path(path).exists();
+    if name.ends_with(".clip.ron") || (name.ends_with(".npy") && !positions) {
         let clip = Clip::load(path)?;
         // A retargeted clip holds one body's joint angles: on another body they would land on
         // other joints (or past the end of its qpos).
