@@ -151,112 +151,128 @@ impl SbatchArgs {
 pub fn run(cmd: RecipeCommand) -> Result<()> {
     let exe = std::env::current_exe().context("locating the repertoire binary")?;
     match cmd {
-        RecipeCommand::Plan { recipe, dot } => {
-            let plan = Plan::load_with(&recipe.file, recipe.work.as_deref(), &recipe.vars)?;
-            if dot {
-                print!("{:?}", petgraph::dot::Dot::with_config(&plan.graph(), &[petgraph::dot::Config::EdgeNoLabel]));
-                return Ok(());
-            }
-            let mut runner = Runner::new(&plan, exe);
-            runner.settle_all()?;
-            print!("{}", plan_table(&runner)?);
-            Ok(())
-        }
-        RecipeCommand::Run { recipe, slurm: false, .. } => {
-            let plan = Plan::load_with(&recipe.file, recipe.work.as_deref(), &recipe.vars)?;
-            let mut runner = Runner::new(&plan, exe);
-            let t = std::time::Instant::now();
-            let s = runner.run_local()?;
-            println!(
-                "recipe {}: {} stages run, {} done before, {} in rounds that stopped; {:.1} min; work folder {}",
-                recipe.file.display(),
-                s.ran,
-                s.skipped,
-                s.stopped,
-                t.elapsed().as_secs_f64() / 60.0,
-                plan.work.display()
-            );
-            Ok(())
-        }
-        RecipeCommand::Run { recipe, slurm: true, sbatch, wait } => {
-            let plan = Plan::load_with(&recipe.file, recipe.work.as_deref(), &recipe.vars)?;
-            let opts = sbatch.options()?;
-            let mut again = vec!["recipe".to_string(), "run".into()];
-            again.extend(recipe.args());
-            again.push("--slurm".into());
-            again.extend(sbatch.args());
-            let mut runner = Runner::new(&plan, exe.clone());
-            let s = slurm::submit(&mut runner, &recipe.args(), &again, &opts)?;
-            println!(
-                "recipe {}: {} jobs submitted, {} still queued from before, {} stages done{}",
-                recipe.file.display(),
-                s.jobs.len(),
-                s.queued,
-                s.done,
-                s.continuation.map_or(String::new(), |j| format!("; job {j} submits the rounds after"))
-            );
-            if wait {
-                slurm::wait(&plan.work, std::time::Duration::from_secs(2))?;
-                let mut runner = Runner::new(&plan, exe);
-                runner.settle_all()?;
-                let mut unfinished = Vec::new();
-                for (i, st) in plan.stages.iter().enumerate() {
-                    if runner.active(i) != Some(false) && !runner.done(i)? {
-                        unfinished.push(st.id.clone());
-                    }
-                }
-                if !unfinished.is_empty() {
-                    bail!(
-                        "the jobs ended but these stages did not finish: {} (their logs: {})",
-                        unfinished.join(", "),
-                        runner.store.log_dir().display()
-                    );
-                }
-                println!("every stage of {} finished", recipe.file.display());
-            }
-            Ok(())
-        }
-        RecipeCommand::Adopt { recipe, through } => {
-            let plan = Plan::load_with(&recipe.file, recipe.work.as_deref(), &recipe.vars)?;
-            let last = match &through {
-                Some(id) => plan.find(id)?,
-                None => plan.stages.len().saturating_sub(1),
-            };
-            let mut runner = Runner::new(&plan, exe);
-            let mut n = 0;
-            for i in 0..plan.stages.len().min(last + 1) {
-                runner.settle(i)?;
-                if let Some(old) = runner.adopt(i)? {
-                    n += 1;
-                    println!(
-                        "── {}: adopted (identity {old} → {})",
-                        plan.stages[i].id,
-                        runner.identity(i).unwrap_or("")
-                    );
-                }
-            }
-            println!("recipe {}: {n} stages adopted", recipe.file.display());
-            Ok(())
-        }
-        RecipeCommand::Stage { recipe, id } => {
-            let plan = Plan::load_with(&recipe.file, recipe.work.as_deref(), &recipe.vars)?;
-            let i = plan.find(&id)?;
-            let mut runner = Runner::new(&plan, exe);
-            for j in 0..=i {
-                runner.settle(j)?;
-            }
-            if runner.done(i)? {
-                println!("── {id}: done before (identity {})", runner.identity(i).unwrap_or(""));
-                return Ok(());
-            }
-            let ran = match std::env::var("SLURM_JOB_ID") {
-                Ok(j) => format!("slurm job {j}"),
-                Err(_) => "local".into(),
-            };
-            runner.run_stage(i, &ran)?;
-            Ok(())
+        RecipeCommand::Plan { recipe, dot } => plan(&recipe, dot, exe),
+        RecipeCommand::Run { recipe, slurm: false, .. } => run_here(&recipe, exe),
+        RecipeCommand::Run { recipe, slurm: true, sbatch, wait } => run_slurm(&recipe, &sbatch, wait, exe),
+        RecipeCommand::Adopt { recipe, through } => adopt(&recipe, through.as_deref(), exe),
+        RecipeCommand::Stage { recipe, id } => stage(&recipe, &id, exe),
+    }
+}
+
+fn load(recipe: &RecipeArgs) -> Result<Plan> {
+    Ok(Plan::load_with(&recipe.file, recipe.work.as_deref(), &recipe.vars)?)
+}
+
+/// `recipe plan`: the table, or the graph in dot.
+fn plan(recipe: &RecipeArgs, dot: bool, exe: PathBuf) -> Result<()> {
+    let plan = load(recipe)?;
+    if dot {
+        print!("{:?}", petgraph::dot::Dot::with_config(&plan.graph(), &[petgraph::dot::Config::EdgeNoLabel]));
+        return Ok(());
+    }
+    let mut runner = Runner::new(&plan, exe);
+    runner.settle_all()?;
+    print!("{}", plan_table(&runner)?);
+    Ok(())
+}
+
+/// `recipe run`: every stage not done, in order, here.
+fn run_here(recipe: &RecipeArgs, exe: PathBuf) -> Result<()> {
+    let plan = load(recipe)?;
+    let mut runner = Runner::new(&plan, exe);
+    let t = std::time::Instant::now();
+    let s = runner.run_local()?;
+    println!(
+        "recipe {}: {} stages run, {} done before, {} in rounds that stopped; {:.1} min; work folder {}",
+        recipe.file.display(),
+        s.ran,
+        s.skipped,
+        s.stopped,
+        t.elapsed().as_secs_f64() / 60.0,
+        plan.work.display()
+    );
+    Ok(())
+}
+
+/// `recipe run --slurm [--wait]`: each stage not done as a batch job.
+fn run_slurm(recipe: &RecipeArgs, sbatch: &SbatchArgs, wait: bool, exe: PathBuf) -> Result<()> {
+    let plan = load(recipe)?;
+    let opts = sbatch.options()?;
+    let mut again = vec!["recipe".to_string(), "run".into()];
+    again.extend(recipe.args());
+    again.push("--slurm".into());
+    again.extend(sbatch.args());
+    let mut runner = Runner::new(&plan, exe.clone());
+    let s = slurm::submit(&mut runner, &recipe.args(), &again, &opts)?;
+    println!(
+        "recipe {}: {} jobs submitted, {} still queued from before, {} stages done{}",
+        recipe.file.display(),
+        s.jobs.len(),
+        s.queued,
+        s.done,
+        s.continuation.map_or(String::new(), |j| format!("; job {j} submits the rounds after"))
+    );
+    if !wait {
+        return Ok(());
+    }
+    slurm::wait(&plan.work, std::time::Duration::from_secs(2))?;
+    let mut runner = Runner::new(&plan, exe);
+    runner.settle_all()?;
+    let mut unfinished = Vec::new();
+    for (i, st) in plan.stages.iter().enumerate() {
+        if runner.active(i) != Some(false) && !runner.done(i)? {
+            unfinished.push(st.id.clone());
         }
     }
+    if !unfinished.is_empty() {
+        bail!(
+            "the jobs ended but these stages did not finish: {} (their logs: {})",
+            unfinished.join(", "),
+            runner.store.log_dir().display()
+        );
+    }
+    println!("every stage of {} finished", recipe.file.display());
+    Ok(())
+}
+
+/// `recipe adopt`: the stages (up to `through`) given their current identities.
+fn adopt(recipe: &RecipeArgs, through: Option<&str>, exe: PathBuf) -> Result<()> {
+    let plan = load(recipe)?;
+    let last = match through {
+        Some(id) => plan.find(id)?,
+        None => plan.stages.len().saturating_sub(1),
+    };
+    let mut runner = Runner::new(&plan, exe);
+    let mut n = 0;
+    for i in 0..plan.stages.len().min(last + 1) {
+        runner.settle(i)?;
+        if let Some(old) = runner.adopt(i)? {
+            n += 1;
+            println!("── {}: adopted (identity {old} → {})", plan.stages[i].id, runner.identity(i).unwrap_or(""));
+        }
+    }
+    println!("recipe {}: {n} stages adopted", recipe.file.display());
+    Ok(())
+}
+
+/// `recipe stage`: one stage, with what the stages it follows left (what each Slurm job runs).
+fn stage(recipe: &RecipeArgs, id: &str, exe: PathBuf) -> Result<()> {
+    let plan = load(recipe)?;
+    let i = plan.find(id)?;
+    let mut runner = Runner::new(&plan, exe);
+    for j in 0..=i {
+        runner.settle(j)?;
+    }
+    if runner.done(i)? {
+        println!("── {id}: done before (identity {})", runner.identity(i).unwrap_or(""));
+        return Ok(());
+    }
+    let ran = match std::env::var("SLURM_JOB_ID") {
+        Ok(j) => format!("slurm job {j}"),
+        Err(_) => "local".into(),
+    };
+    runner.run_stage(i, &ran)?;
+    Ok(())
 }
 
 /// The `recipe plan` table.

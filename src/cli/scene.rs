@@ -51,36 +51,7 @@ fn check(file: Option<PathBuf>) -> Result<()> {
     if !s.description.is_empty() {
         println!("          {}", s.description);
     }
-    println!("body      {} (hash {})", model.body.mjcf_path.display(), model.body.content_hash());
-    println!("          {} actuated DoF, {:.1} kg, standing height {:.2} m", model.index.dof(), mass, height);
-    println!(
-        "          standing pose: the feet's lowest point {:.1} mm {} the floor",
-        1000.0 * model.sole_clearance().abs(),
-        if model.sole_clearance() >= 0.0 { "above" } else { "below" }
-    );
-    if model.lowered_by != 0.0 {
-        println!(
-            "          default pose moved {:.1} cm {} onto the floor (the body map's stand_on_floor)",
-            100.0 * model.lowered_by.abs(),
-            if model.lowered_by > 0.0 { "down" } else { "up" }
-        );
-    }
-    println!("          joints: {}", model.index.joints.iter().map(|j| j.name.as_str()).collect::<Vec<_>>().join(" "));
-    if !model.pd_motors.is_empty() {
-        let each: Vec<String> = model
-            .pd_motors
-            .iter()
-            .map(|m| {
-                let peak = m.max_torque.map_or("unlimited".into(), |t| format!("{t:.0}"));
-                format!("{} {:.0}/{:.0}/{peak}", m.joint, m.kp, m.kv)
-            })
-            .collect();
-        println!(
-            "          {} torque motors driven as PD servos (kp N·m/rad / kv N·m·s/rad / peak N·m): {}",
-            model.pd_motors.len(),
-            each.join(", ")
-        );
-    }
+    print_body(&model, mass, height);
     let floor = model.mj_model().id_to_name(MjtObjBase::mjOBJ_GEOM, model.floor_geom).unwrap_or("(unnamed)");
     println!("floor     `{floor}`{}", if model.own_floor { ", the body file's own ground plane" } else { "" });
     println!(
@@ -123,6 +94,40 @@ fn check(file: Option<PathBuf>) -> Result<()> {
     print_levels(&model);
     println!("ok");
     Ok(())
+}
+
+/// The body: file, DoF, mass, standing height and pose, joints, motors driven as PD servos.
+fn print_body(model: &WorldModel, mass: f64, height: f64) {
+    println!("body      {} (hash {})", model.body.mjcf_path.display(), model.body.content_hash());
+    println!("          {} actuated DoF, {:.1} kg, standing height {:.2} m", model.index.dof(), mass, height);
+    println!(
+        "          standing pose: the feet's lowest point {:.1} mm {} the floor",
+        1000.0 * model.sole_clearance().abs(),
+        if model.sole_clearance() >= 0.0 { "above" } else { "below" }
+    );
+    if model.lowered_by != 0.0 {
+        println!(
+            "          default pose moved {:.1} cm {} onto the floor (the body map's stand_on_floor)",
+            100.0 * model.lowered_by.abs(),
+            if model.lowered_by > 0.0 { "down" } else { "up" }
+        );
+    }
+    println!("          joints: {}", model.index.joints.iter().map(|j| j.name.as_str()).collect::<Vec<_>>().join(" "));
+    if !model.pd_motors.is_empty() {
+        let each: Vec<String> = model
+            .pd_motors
+            .iter()
+            .map(|m| {
+                let peak = m.max_torque.map_or("unlimited".into(), |t| format!("{t:.0}"));
+                format!("{} {:.0}/{:.0}/{peak}", m.joint, m.kp, m.kv)
+            })
+            .collect();
+        println!(
+            "          {} torque motors driven as PD servos (kp N·m/rad / kv N·m·s/rad / peak N·m): {}",
+            model.pd_motors.len(),
+            each.join(", ")
+        );
+    }
 }
 
 /// The scenario's props, one line each.
