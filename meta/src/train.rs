@@ -223,7 +223,8 @@ pub(crate) fn warm_start(
             "the controller was trained over other weights of these skills: it goes on over the library's"
         );
     }
-    let invalid = |path: &Path, e: String| MetaError::Invalid(format!("{}: {e}", path.display()));
+    let invalid =
+        |path: &Path, e: repertoire_learn::acting::ShapeError| MetaError::Invalid(format!("{}: {e}", path.display()));
     head.load_into(ppo).map_err(|e| invalid(&dir.join("meta.safetensors"), e))?;
     let critic_path = dir.join(CRITIC_FILE);
     let critic = critic_path.exists();

@@ -14,6 +14,104 @@ use crate::nn::{Mlp, MlpInference};
 use crate::normalize::RunningMeanStd;
 use crate::ppo::{OBS_CLIP, Ppo};
 
+/// Why saved networks do not fit a learner, or an edit of them cannot be made
+/// ([`ActingPolicy::load_into`], [`ActingPolicy::widened`], [`ActingHybrid::load_into`], ...).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum ShapeError {
+    /// Another number of layers than the learner's configuration.
+    #[error("the {what} network has {saved} layers, the configuration {config}")]
+    Layers {
+        /// Which network (`policy`, `value`, `option`, `continuous`).
+        what: &'static str,
+        /// Layers saved.
+        saved: usize,
+        /// Layers configured.
+        config: usize,
+    },
+    /// A layer of another shape (inputs × outputs).
+    #[error("{what} layer {layer} is {}×{} in the file, {}×{} in the configuration", saved.0, saved.1, config.0, config.1)]
+    Layer {
+        /// Which network.
+        what: &'static str,
+        /// Its index, input first.
+        layer: usize,
+        /// Saved inputs × outputs.
+        saved: (usize, usize),
+        /// Configured inputs × outputs.
+        config: (usize, usize),
+    },
+    /// Another width of something both have (observations, actions, continuous values).
+    #[error("the saved {what} is {saved} wide, the learner's {learner}")]
+    Width {
+        /// What (`observation`, `action`, `value network's input`).
+        what: &'static str,
+        /// Saved width.
+        saved: usize,
+        /// The learner's.
+        learner: usize,
+    },
+    /// Inputs inserted past the network's last.
+    #[error("cannot insert inputs at {at}: the network takes {inputs}")]
+    InsertPast {
+        /// Where.
+        at: usize,
+        /// How many it takes.
+        inputs: usize,
+    },
+    /// Widening to fewer inputs than it takes.
+    #[error("cannot narrow a policy from {have} to {want} inputs")]
+    Narrow {
+        /// Inputs now.
+        have: usize,
+        /// Inputs asked for.
+        want: usize,
+    },
+    /// A controller's head into a learner whose environment has no hybrid actions.
+    #[error("the learner's environment has no hybrid actions")]
+    NotHybrid,
+    /// A controller's options read the continuous part otherwise than the learner's.
+    #[error("the controller's options read the continuous part as {saved:?}, the learner's as {learner:?}")]
+    Options {
+        /// Per option, whether it reads the continuous part (saved).
+        saved: Vec<bool>,
+        /// The learner's.
+        learner: Vec<bool>,
+    },
+    /// Weights and biases that do not fill a layer ([`crate::nn::MlpInference::from_layers`]).
+    #[error("layer {layer}: {inputs}×{outputs} needs {} weights and {outputs} biases, found {weights} and {biases}", inputs * outputs)]
+    Weights {
+        /// The layer.
+        layer: usize,
+        /// Its inputs.
+        inputs: usize,
+        /// Its outputs.
+        outputs: usize,
+        /// Weights given.
+        weights: usize,
+        /// Biases given.
+        biases: usize,
+    },
+    /// No layers at all.
+    #[error("an MLP needs at least one layer")]
+    NoLayers,
+    /// A layer taking another number of inputs than the layer before gives.
+    #[error("layer {layer} takes {inputs} inputs but the layer before gives {before}")]
+    Chain {
+        /// The layer.
+        layer: usize,
+        /// Its inputs.
+        inputs: usize,
+        /// The outputs of the layer before.
+        before: usize,
+    },
+    /// A NaN or infinite weight or bias.
+    #[error("layer {layer} holds a NaN or infinite weight")]
+    NotFinite {
+        /// The layer.
+        layer: usize,
+    },
+}
+
 /// A trained Gaussian policy with its frozen observation normaliser.
 #[derive(Clone, Debug)]
 pub struct ActingPolicy {
@@ -65,11 +163,22 @@ impl ActingPolicy {
     /// Starts `ppo` from this policy (fine-tuning): the mean network, log-std and observation
     /// statistics are copied in (the value network keeps its initialisation). `Err` names the
     /// first shape that differs.
-    pub fn load_into<E: Env>(&self, ppo: &mut Ppo<E>) -> Result<(), String> {
+    pub fn load_into<E: Env>(&self, ppo: &mut Ppo<E>) -> Result<(), ShapeError> {
         let policy = &mut ppo.agent.policy;
         copy_mlp(&mut policy.mean, &self.mean, "policy")?;
-        if policy.log_std.shape().0 != self.log_std.len() || ppo.obs_rms.dim() != self.obs_rms.dim() {
-            return Err("the action or observation width differs".into());
+        if policy.log_std.shape().0 != self.log_std.len() {
+            return Err(ShapeError::Width {
+                what: "action",
+                saved: self.log_std.len(),
+                learner: policy.log_std.shape().0,
+            });
+        }
+        if ppo.obs_rms.dim() != self.obs_rms.dim() {
+            return Err(ShapeError::Width {
+                what: "observation",
+                saved: self.obs_rms.dim(),
+                learner: ppo.obs_rms.dim(),
+            });
         }
         policy.log_std.copy_from(&self.log_std);
         ppo.obs_rms = self.obs_rms.clone();
@@ -84,10 +193,10 @@ impl ActingPolicy {
     /// variance 1), so the widened policy acts exactly as this one until training gives them
     /// weight (a skill's next training stage observing more, such as walk's target). `Err`
     /// when `inputs` is fewer than it takes now.
-    pub fn widened(&self, inputs: usize) -> Result<ActingPolicy, String> {
+    pub fn widened(&self, inputs: usize) -> Result<ActingPolicy, ShapeError> {
         let have = self.obs_dim();
         if inputs < have {
-            return Err(format!("cannot narrow a policy from {have} to {inputs} inputs"));
+            return Err(ShapeError::Narrow { have, want: inputs });
         }
         self.with_inputs_at(have, inputs - have)
     }
@@ -95,10 +204,10 @@ impl ActingPolicy {
     /// This policy with `count` new observation values inserted before its input `at` (`at`
     /// = its width appends them), entering as in [`ActingPolicy::widened`]: a skill started
     /// from another that observes less (carry from walk, which does not see the box).
-    pub fn with_inputs_at(&self, at: usize, count: usize) -> Result<ActingPolicy, String> {
+    pub fn with_inputs_at(&self, at: usize, count: usize) -> Result<ActingPolicy, ShapeError> {
         let have = self.obs_dim();
         if at > have {
-            return Err(format!("cannot insert inputs at {at}: the policy takes {have}"));
+            return Err(ShapeError::InsertPast { at, inputs: have });
         }
         let mut obs_rms = self.obs_rms.clone();
         obs_rms.mean.splice(at..at, std::iter::repeat_n(0.0, count));
@@ -218,7 +327,7 @@ pub fn read_mlp(path: &Path, st: &SafeTensors<'_>, prefix: &str) -> Result<MlpIn
         }
         layers.push((shape[0], shape[1], w, b));
     }
-    MlpInference::from_layers(layers).map_err(|m| corrupt(path, m))
+    MlpInference::from_layers(layers).map_err(|e| corrupt(path, e.to_string()))
 }
 
 /// Writes `entries` to `path` as safetensors (format tag `format`), atomically.
@@ -235,21 +344,18 @@ pub(crate) fn write_entries(path: &Path, entries: &[Entry], format: &str) -> Res
 
 /// Copies `src`'s weights into the trainable `dst` (`what` names it in the error); `Err` names
 /// the first shape that differs.
-fn copy_mlp(dst: &mut Mlp, src: &MlpInference, what: &str) -> Result<(), String> {
+fn copy_mlp(dst: &mut Mlp, src: &MlpInference, what: &'static str) -> Result<(), ShapeError> {
     if dst.layers.len() != src.layers().len() {
-        return Err(format!(
-            "the {what} network has {} layers, the configuration {}",
-            src.layers().len(),
-            dst.layers.len()
-        ));
+        return Err(ShapeError::Layers { what, saved: src.layers().len(), config: dst.layers.len() });
     }
     for (i, (layer, (inputs, outputs, w, b))) in dst.layers.iter_mut().zip(src.layers()).enumerate() {
         if (layer.inputs(), layer.outputs()) != (*inputs, *outputs) {
-            return Err(format!(
-                "{what} layer {i} is {inputs}×{outputs} in the file, {}×{} in the configuration",
-                layer.inputs(),
-                layer.outputs()
-            ));
+            return Err(ShapeError::Layer {
+                what,
+                layer: i,
+                saved: (*inputs, *outputs),
+                config: (layer.inputs(), layer.outputs()),
+            });
         }
         layer.weight.copy_from(w);
         layer.bias.copy_from(b);
@@ -258,11 +364,11 @@ fn copy_mlp(dst: &mut Mlp, src: &MlpInference, what: &str) -> Result<(), String>
 }
 
 /// `mlp` with `count` inputs inserted before its input `at`, entering with zero weights.
-fn insert_zero_inputs(mlp: &MlpInference, at: usize, count: usize) -> Result<MlpInference, String> {
+fn insert_zero_inputs(mlp: &MlpInference, at: usize, count: usize) -> Result<MlpInference, ShapeError> {
     let mut layers = mlp.layers().to_vec();
     let (inputs, outputs, w, _) = &mut layers[0];
     if at > *inputs {
-        return Err(format!("cannot insert inputs at {at}: the network takes {inputs}"));
+        return Err(ShapeError::InsertPast { at, inputs: *inputs });
     }
     // Row-major [in × out]: the new inputs are `count` zero rows from row `at`.
     let outputs = *outputs;
@@ -291,14 +397,16 @@ impl ActingCritic {
 
     /// Starts `ppo`'s value network and reward normaliser from this critic. `Err` names the
     /// first shape that differs.
-    pub fn load_into<E: Env>(&self, ppo: &mut Ppo<E>) -> Result<(), String> {
-        if self.value.inputs() != ppo.envs.obs_dim() || self.value.outputs() != 1 {
-            return Err(format!(
-                "the value network maps {} → {} values, the learner observes {}",
-                self.value.inputs(),
-                self.value.outputs(),
-                ppo.envs.obs_dim()
-            ));
+    pub fn load_into<E: Env>(&self, ppo: &mut Ppo<E>) -> Result<(), ShapeError> {
+        if self.value.inputs() != ppo.envs.obs_dim() {
+            return Err(ShapeError::Width {
+                what: "value network's input",
+                saved: self.value.inputs(),
+                learner: ppo.envs.obs_dim(),
+            });
+        }
+        if self.value.outputs() != 1 {
+            return Err(ShapeError::Width { what: "value network's output", saved: self.value.outputs(), learner: 1 });
         }
         copy_mlp(&mut ppo.agent.value.net, &self.value, "value")?;
         ppo.reward_scaler.rms = self.returns.clone();
@@ -307,7 +415,7 @@ impl ActingCritic {
 
     /// This critic with `count` observation values inserted before its input `at`, as
     /// [`ActingPolicy::with_inputs_at`] does for the policy it was saved with.
-    pub fn with_inputs_at(&self, at: usize, count: usize) -> Result<ActingCritic, String> {
+    pub fn with_inputs_at(&self, at: usize, count: usize) -> Result<ActingCritic, ShapeError> {
         Ok(ActingCritic { value: insert_zero_inputs(&self.value, at, count)?, returns: self.returns.clone() })
     }
 
@@ -403,29 +511,29 @@ impl ActingHybrid {
     /// start: the value network keeps its initialisation unless a critic is loaded as well).
     /// `Err` names the first thing that differs: no hybrid head, the options, the continuous
     /// width, a layer's shape or the observation width.
-    pub fn load_into<E: Env>(&self, ppo: &mut Ppo<E>) -> Result<(), String> {
+    pub fn load_into<E: Env>(&self, ppo: &mut Ppo<E>) -> Result<(), ShapeError> {
         if ppo.obs_rms.dim() != self.obs_rms.dim() {
-            return Err(format!(
-                "the controller observes {} values, the learner {}",
-                self.obs_rms.dim(),
-                ppo.obs_rms.dim()
-            ));
+            return Err(ShapeError::Width {
+                what: "observation",
+                saved: self.obs_rms.dim(),
+                learner: ppo.obs_rms.dim(),
+            });
         }
         let Some(hybrid) = ppo.agent.hybrid.as_mut() else {
-            return Err("the learner's environment has no hybrid actions".into());
+            return Err(ShapeError::NotHybrid);
         };
         if hybrid.uses_continuous != self.head.uses_continuous {
-            return Err(format!(
-                "the controller's options read the continuous part as {:?}, the learner's as {:?}",
-                self.head.uses_continuous, hybrid.uses_continuous
-            ));
+            return Err(ShapeError::Options {
+                saved: self.head.uses_continuous.clone(),
+                learner: hybrid.uses_continuous.clone(),
+            });
         }
         if hybrid.log_std.shape().0 != self.head.log_std.len() {
-            return Err(format!(
-                "the controller emits {} continuous values, the learner {}",
-                self.head.log_std.len(),
-                hybrid.log_std.shape().0
-            ));
+            return Err(ShapeError::Width {
+                what: "continuous action",
+                saved: self.head.log_std.len(),
+                learner: hybrid.log_std.shape().0,
+            });
         }
         copy_mlp(&mut hybrid.logits, &self.head.logits, "option")?;
         copy_mlp(&mut hybrid.mean, &self.head.mean, "continuous")?;

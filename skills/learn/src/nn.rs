@@ -185,24 +185,26 @@ pub struct MlpInference {
 impl MlpInference {
     /// Builds from `(in, out, W [in × out] row-major, b [out])` per layer, input first; `Err`
     /// says which layer does not fit.
-    pub fn from_layers(layers: Vec<(usize, usize, Vec<f32>, Vec<f32>)>) -> Result<Self, String> {
+    pub fn from_layers(layers: Vec<(usize, usize, Vec<f32>, Vec<f32>)>) -> Result<Self, crate::acting::ShapeError> {
+        use crate::acting::ShapeError;
         if layers.is_empty() {
-            return Err("an MLP needs at least one layer".into());
+            return Err(ShapeError::NoLayers);
         }
         for (i, (inputs, outputs, w, b)) in layers.iter().enumerate() {
             if w.len() != inputs * outputs || b.len() != *outputs {
-                return Err(format!(
-                    "layer {i}: {inputs}×{outputs} needs {} weights and {outputs} biases, found {} and {}",
-                    inputs * outputs,
-                    w.len(),
-                    b.len()
-                ));
+                return Err(ShapeError::Weights {
+                    layer: i,
+                    inputs: *inputs,
+                    outputs: *outputs,
+                    weights: w.len(),
+                    biases: b.len(),
+                });
             }
             if i > 0 && layers[i - 1].1 != *inputs {
-                return Err(format!("layer {i} takes {inputs} inputs but layer {} gives {}", i - 1, layers[i - 1].1));
+                return Err(ShapeError::Chain { layer: i, inputs: *inputs, before: layers[i - 1].1 });
             }
             if w.iter().chain(b).any(|v| !v.is_finite()) {
-                return Err(format!("layer {i} holds a NaN or infinite weight"));
+                return Err(ShapeError::NotFinite { layer: i });
             }
         }
         Ok(MlpInference { layers, scratch: [Vec::new(), Vec::new()] })

@@ -4,6 +4,7 @@ mod common;
 
 use std::path::PathBuf;
 
+use repertoire_learn::acting::ShapeError;
 use repertoire_learn::checkpoint::{self, CheckpointError};
 use repertoire_learn::env::Env;
 use repertoire_learn::nn::Parameters;
@@ -205,11 +206,11 @@ fn a_widened_policy_acts_as_before_whatever_its_new_inputs_say() {
         assert_eq!(a, b, "extra inputs {extra:?} changed the action");
     }
     assert_ne!(a, vec![0.0; a.len()], "a trained policy acts");
-    assert!(old.widened(3).expect_err("narrowing").contains("narrow"));
+    assert_eq!(old.widened(3).expect_err("narrowing"), ShapeError::Narrow { have: 4, want: 3 });
 
     let mut wider_ppo = Ppo::new(common::tiny_config(2), vec![common::Drift::new(7), common::Drift::new(7)]);
     let err = old.load_into(&mut wider_ppo).expect_err("4 inputs into a 7-input learner");
-    assert!(err.contains("layer 0") || err.contains("width"), "{err}");
+    assert!(matches!(err, ShapeError::Layer { what: "policy", layer: 0, saved: (4, _), config: (7, _) }), "{err}");
     // Both envs take one action: only the observation width differs.
     assert_eq!(common::Drift::new(7).act_dim(), old.act_dim());
     wide.load_into(&mut wider_ppo).expect("the widened policy fits");
@@ -242,7 +243,7 @@ fn inputs_inserted_mid_observation_change_nothing_until_trained() {
             assert_eq!(grown.obs_rms.mean[k], old.obs_rms.mean[j], "input {j} inserted at {at}");
         }
     }
-    assert!(old.with_inputs_at(5, 1).expect_err("past the end").contains("takes 4"));
+    assert_eq!(old.with_inputs_at(5, 1).expect_err("past the end"), ShapeError::InsertPast { at: 5, inputs: 4 });
 }
 
 #[test]
@@ -286,7 +287,7 @@ fn a_critic_round_trips_continues_a_learner_and_refuses_damage() {
     // A learner observing something else is refused, naming the widths.
     let mut other = Ppo::new(common::tiny_config(2), vec![common::Drift::new(7), common::Drift::new(7)]);
     let err = back.load_into(&mut other).expect_err("a 4-input critic into a 7-input learner");
-    assert!(err.contains("observes 7"), "{err}");
+    assert_eq!(err, ShapeError::Width { what: "value network's input", saved: 4, learner: 7 }, "{err}");
 
     // Truncated or poisoned files name the file.
     let bytes = std::fs::read(&path).expect("read");

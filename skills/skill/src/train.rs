@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use indicatif::{ProgressBar, ProgressStyle};
-use repertoire_learn::acting::{ActingCritic, ActingPolicy};
+use repertoire_learn::acting::{ActingCritic, ActingPolicy, ShapeError};
 use repertoire_learn::checkpoint;
 use repertoire_learn::env::Env;
 use repertoire_learn::ppo::{IterationMetrics, Ppo};
@@ -228,7 +228,7 @@ pub fn grown_prior(setup: &SkillSetup, prior: &LibrarySkill, wanted: usize) -> R
     }
     let name = &setup.spec.spec.name;
     tracing::info!(skill = %name, from = %prior.manifest.name, inputs = prior.policy.obs_dim(), to = wanted, "growing the policy's input");
-    let grow = |p: &ActingPolicy| -> std::result::Result<ActingPolicy, String> {
+    let grow = |p: &ActingPolicy| -> std::result::Result<ActingPolicy, ShapeError> {
         p.with_inputs_at(g.at, g.count)?.widened(wanted)
     };
     grow(&prior.policy).map_err(|m| SkillError::Mismatch {
@@ -242,7 +242,7 @@ pub fn grown_prior(setup: &SkillSetup, prior: &LibrarySkill, wanted: usize) -> R
 pub fn grown_critic(setup: &SkillSetup, prior: &LibrarySkill, wanted: usize) -> Result<Option<ActingCritic>> {
     let Some(critic) = prior.load_critic()? else { return Ok(None) };
     let g = growth(setup, prior, wanted)?;
-    let grow = |c: &ActingCritic| -> std::result::Result<ActingCritic, String> {
+    let grow = |c: &ActingCritic| -> std::result::Result<ActingCritic, ShapeError> {
         let c = c.with_inputs_at(g.at, g.count)?;
         c.with_inputs_at(c.obs_dim(), g.append)
     };
@@ -250,7 +250,7 @@ pub fn grown_critic(setup: &SkillSetup, prior: &LibrarySkill, wanted: usize) -> 
 }
 
 /// A critic of `prior` that `setup`'s skill cannot continue, and why.
-fn critic_mismatch(setup: &SkillSetup, prior: &LibrarySkill, why: String) -> SkillError {
+fn critic_mismatch(setup: &SkillSetup, prior: &LibrarySkill, why: ShapeError) -> SkillError {
     SkillError::Mismatch {
         path: prior.dir.join(library::VALUE_FILE),
         message: format!("cannot continue `{}`'s critic from it: {why}", setup.spec.spec.name),
