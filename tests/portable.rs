@@ -5,8 +5,25 @@
 
 use std::path::{Path, PathBuf};
 
-/// Folders whose every text file is checked.
-const CHECKED: [&str; 8] = ["skills", "meta", "recipes", "docs", "scenes", "report", "curriculum", "mocap"];
+/// Folders whose every text file is checked: the data (library, results, scenarios, specs,
+/// recipes, ablations, bodies, clips, docs) and the code crates.
+const CHECKED: [&str; 15] = [
+    "library",
+    "library-stage1",
+    "results",
+    "scenarios",
+    "specs",
+    "recipes",
+    "ablations",
+    "bodies",
+    "mocap",
+    "docs",
+    "skills",
+    "meta",
+    "scenes",
+    "report",
+    "curriculum",
+];
 
 fn files(dir: &Path, out: &mut Vec<PathBuf>) {
     let Ok(entries) = std::fs::read_dir(dir) else { return };
@@ -109,7 +126,9 @@ fn lineages_name_recipe_stages_that_exist() {
     );
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let mut all = Vec::new();
-    files(&root.join("skills"), &mut all);
+    files(&root.join("library"), &mut all);
+    files(&root.join("library-stage1"), &mut all);
+    assert!(all.iter().filter(|f| f.ends_with("manifest.ron")).count() > 10, "the libraries' manifests are read");
     let mut named = std::collections::BTreeSet::new();
     for f in all
         .iter()
@@ -131,4 +150,38 @@ fn lineages_name_recipe_stages_that_exist() {
             "a lineage names stage {stage} of {file}, which has none:\n{plan}"
         );
     }
+}
+
+/// The relative link targets in markdown `text` (`[x](../docs/a.md#b)` → `../docs/a.md`).
+fn relative_links(text: &str) -> Vec<&str> {
+    text.match_indices("](")
+        .filter_map(|(i, _)| {
+            let rest = &text[i + 2..];
+            let end = rest.find([')', ' ', '#'])?;
+            let link = &rest[..end];
+            (!link.is_empty() && !link.contains("://") && !link.starts_with("mailto:")).then_some(link)
+        })
+        .collect()
+}
+
+#[test]
+fn every_relative_link_in_the_committed_markdown_resolves() {
+    assert_eq!(relative_links("see [a](../docs/a.md#b), [w](https://x.org/y) and [c](c/)"), ["../docs/a.md", "c/"]);
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut all = vec![root.join("README.md"), root.join("CHANGELOG.md")];
+    for d in CHECKED {
+        files(&root.join(d), &mut all);
+    }
+    all.retain(|f| f.extension().is_some_and(|e| e == "md"));
+    assert!(all.len() > 50, "{} markdown files", all.len());
+    let mut bad = Vec::new();
+    for f in &all {
+        let text = std::fs::read_to_string(f).unwrap();
+        for link in relative_links(&text) {
+            if !f.parent().unwrap().join(link).exists() {
+                bad.push(format!("{}: {link}", f.strip_prefix(root).unwrap().display()));
+            }
+        }
+    }
+    assert!(bad.is_empty(), "links to nothing:\n{}", bad.join("\n"));
 }

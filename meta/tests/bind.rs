@@ -23,7 +23,7 @@ fn root() -> &'static Path {
 /// The shipped warehouse with `edit` applied to its text, as if read from `name`.
 fn warehouse_with(name: &str, edit: impl Fn(String) -> String) -> Arc<WorldModel> {
     let text = std::fs::read_to_string(root().join("scenarios/warehouse.ron")).unwrap();
-    let file = ScenarioFile::parse(&root().join("scenes").join(name), edit(text)).expect("variant parses");
+    let file = ScenarioFile::parse(&root().join("scenarios").join(name), edit(text)).expect("variant parses");
     Arc::new(WorldModel::build(file).expect("compiles"))
 }
 
