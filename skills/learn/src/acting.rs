@@ -166,20 +166,8 @@ impl ActingPolicy {
     pub fn load_into<E: Env>(&self, ppo: &mut Ppo<E>) -> Result<(), ShapeError> {
         let policy = &mut ppo.agent.policy;
         copy_mlp(&mut policy.mean, &self.mean, "policy")?;
-        if policy.log_std.shape().0 != self.log_std.len() {
-            return Err(ShapeError::Width {
-                what: "action",
-                saved: self.log_std.len(),
-                learner: policy.log_std.shape().0,
-            });
-        }
-        if ppo.obs_rms.dim() != self.obs_rms.dim() {
-            return Err(ShapeError::Width {
-                what: "observation",
-                saved: self.obs_rms.dim(),
-                learner: ppo.obs_rms.dim(),
-            });
-        }
+        width("action", self.log_std.len(), policy.log_std.shape().0)?;
+        width("observation", self.obs_rms.dim(), ppo.obs_rms.dim())?;
         policy.log_std.copy_from(&self.log_std);
         ppo.obs_rms = self.obs_rms.clone();
         if ppo.cfg.normalize_obs {
@@ -342,6 +330,11 @@ pub(crate) fn write_entries(path: &Path, entries: &[Entry], format: &str) -> Res
     repertoire_files::write_atomic(path, &bytes).map_err(|e| CheckpointError::Io { path: e.path, source: e.source })
 }
 
+/// `Err` naming `what` when the saved width differs from the learner's.
+fn width(what: &'static str, saved: usize, learner: usize) -> Result<(), ShapeError> {
+    if saved == learner { Ok(()) } else { Err(ShapeError::Width { what, saved, learner }) }
+}
+
 /// Copies `src`'s weights into the trainable `dst` (`what` names it in the error); `Err` names
 /// the first shape that differs.
 fn copy_mlp(dst: &mut Mlp, src: &MlpInference, what: &'static str) -> Result<(), ShapeError> {
@@ -398,16 +391,8 @@ impl ActingCritic {
     /// Starts `ppo`'s value network and reward normaliser from this critic. `Err` names the
     /// first shape that differs.
     pub fn load_into<E: Env>(&self, ppo: &mut Ppo<E>) -> Result<(), ShapeError> {
-        if self.value.inputs() != ppo.envs.obs_dim() {
-            return Err(ShapeError::Width {
-                what: "value network's input",
-                saved: self.value.inputs(),
-                learner: ppo.envs.obs_dim(),
-            });
-        }
-        if self.value.outputs() != 1 {
-            return Err(ShapeError::Width { what: "value network's output", saved: self.value.outputs(), learner: 1 });
-        }
+        width("value network's input", self.value.inputs(), ppo.envs.obs_dim())?;
+        width("value network's output", self.value.outputs(), 1)?;
         copy_mlp(&mut ppo.agent.value.net, &self.value, "value")?;
         ppo.reward_scaler.rms = self.returns.clone();
         Ok(())
@@ -512,13 +497,7 @@ impl ActingHybrid {
     /// `Err` names the first thing that differs: no hybrid head, the options, the continuous
     /// width, a layer's shape or the observation width.
     pub fn load_into<E: Env>(&self, ppo: &mut Ppo<E>) -> Result<(), ShapeError> {
-        if ppo.obs_rms.dim() != self.obs_rms.dim() {
-            return Err(ShapeError::Width {
-                what: "observation",
-                saved: self.obs_rms.dim(),
-                learner: ppo.obs_rms.dim(),
-            });
-        }
+        width("observation", self.obs_rms.dim(), ppo.obs_rms.dim())?;
         let Some(hybrid) = ppo.agent.hybrid.as_mut() else {
             return Err(ShapeError::NotHybrid);
         };
@@ -528,13 +507,7 @@ impl ActingHybrid {
                 learner: hybrid.uses_continuous.clone(),
             });
         }
-        if hybrid.log_std.shape().0 != self.head.log_std.len() {
-            return Err(ShapeError::Width {
-                what: "continuous action",
-                saved: self.head.log_std.len(),
-                learner: hybrid.log_std.shape().0,
-            });
-        }
+        width("continuous action", self.head.log_std.len(), hybrid.log_std.shape().0)?;
         copy_mlp(&mut hybrid.logits, &self.head.logits, "option")?;
         copy_mlp(&mut hybrid.mean, &self.head.mean, "continuous")?;
         hybrid.log_std.copy_from(&self.head.log_std);
