@@ -146,15 +146,20 @@ pub struct RoundsItem {
     pub name: String,
     /// At most this many rounds.
     pub max: usize,
-    /// When to stop before `max` (default: never).
+    /// When to stop before `max` (default: never) and which round to keep.
     #[serde(default)]
     pub stop: Option<Stop>,
+    /// Values that change from round to round: `{name}` in a round's stages stands for the
+    /// round's entry (`"seed": ["7", "17", "27"]`: 7 in round 1), one entry per round.
+    #[serde(default)]
+    pub each: BTreeMap<String, Vec<String>>,
     /// The stages of one round (copies and commands; rounds do not nest).
     pub stages: Vec<Item>,
 }
 
-/// A rounds group's stopping rule: stop once a round raises a `meta eval` success rate by less
-/// than `gain_below` points over the round before (or over `baseline` for the first round).
+/// A rounds group's rule, read from the `meta eval` report each round writes: stop once a round
+/// raises its success rate by less than `gain_below` points over the round before (or over
+/// `baseline` for the first round), and keep the last round's outputs or the best round's.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Stop {
@@ -163,12 +168,28 @@ pub struct Stop {
     /// The zone whose success rate counts (default: `all`, every zone together).
     #[serde(default = "all_zones")]
     pub zone: String,
-    /// Points (percent) a round must gain to go on.
-    pub gain_below: f64,
+    /// Points (percent) a round must gain to go on (default: every round runs).
+    #[serde(default)]
+    pub gain_below: Option<f64>,
     /// The report before the first round (a stage before the group writes it); without one
     /// the first round always runs and the second is the first that may stop the group.
     #[serde(default)]
     pub baseline: Option<String>,
+    /// Whose outputs the stages after the group see (default: the last round's).
+    #[serde(default)]
+    pub keep: Keep,
+}
+
+/// Which round of a group the stages after it build on.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Keep {
+    /// The last round that ran.
+    #[default]
+    Last,
+    /// The round whose report has the highest success rate (the earliest of equals), or none of
+    /// them when the baseline is at least as high: the stages after the group see what the
+    /// group started from. Seeds of one training as rounds, the best kept.
+    Best,
 }
 
 fn all_zones() -> String {
@@ -296,8 +317,14 @@ impl Plan {
                     let gi = plan.groups.len();
                     let mut group = Group { name: g.name.clone(), stop: None, rounds: vec![] };
                     if let Some(s) = &g.stop {
-                        if !(s.gain_below.is_finite()) {
+                        if s.gain_below.is_some_and(|x| !x.is_finite()) {
                             return Err(invalid(format!("rounds `{}`: `gain_below` must be a number", g.name)));
+                        }
+                        if s.gain_below.is_none() && s.keep == Keep::Last {
+                            return Err(invalid(format!(
+                                "rounds `{}`: `stop` needs `gain_below` (when to stop) or `keep: Best` (which round to keep)",
+                                g.name
+                            )));
                         }
                         let keep = |t: &str| {
                             fill(t, &vars, None, true).map_err(|m| invalid(format!("rounds `{}`: {m}", g.name)))
@@ -307,15 +334,36 @@ impl Plan {
                             zone: s.zone.clone(),
                             gain_below: s.gain_below,
                             baseline: s.baseline.as_deref().map(keep).transpose()?,
+                            keep: s.keep,
                         });
+                    }
+                    for (k, values) in &g.each {
+                        if ["work", "round", "prev"].contains(&k.as_str()) || vars.contains_key(k) {
+                            return Err(invalid(format!(
+                                "rounds `{}`: `each` may not set `{k}`, which {}",
+                                g.name,
+                                if vars.contains_key(k) { "`vars` sets" } else { "the recipe fills in" }
+                            )));
+                        }
+                        if values.len() < g.max {
+                            return Err(invalid(format!(
+                                "rounds `{}`: `each` gives `{k}` {} values for {} rounds",
+                                g.name,
+                                values.len(),
+                                g.max
+                            )));
+                        }
                     }
                     for r in 1..=g.max {
                         let start = plan.stages.len();
+                        let mut round_vars = vars.clone();
+                        round_vars.extend(g.each.iter().map(|(k, v)| (k.clone(), v[r - 1].clone())));
                         for inner in &g.stages {
                             if matches!(inner, Item::Rounds(_)) {
                                 return Err(invalid(format!("rounds `{}`: rounds do not nest", g.name)));
                             }
-                            let (stage, a) = stage_of(inner, &vars, Some((gi, r)), &g.name, &work).map_err(invalid)?;
+                            let (stage, a) =
+                                stage_of(inner, &round_vars, Some((gi, r)), &g.name, &work).map_err(invalid)?;
                             plan.stages.push(stage);
                             after.push(a);
                         }
@@ -712,5 +760,24 @@ mod tests {
         assert!(e.to_string().contains("two stages are called `a`"), "{e}");
         let e = plan(r#"(work: ".", stages: [])"#).unwrap_err();
         assert!(e.to_string().contains("folder of its own"), "{e}");
+        let e = plan(
+            r#"(work: "w", stages: [Rounds(name: "g", max: 3, each: {"seed": ["1", "2"]}, stages: [Run(name: "a", args: ["x", "{seed}"])])])"#,
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("`seed` 2 values for 3 rounds"), "{e}");
+    }
+
+    #[test]
+    fn each_round_reads_its_own_values() {
+        let p = plan(
+            r#"(work: "w", stages: [Rounds(name: "g", max: 2, each: {"seed": ["7", "17"]}, stages: [
+                Run(name: "a", args: ["x", "--seed", "{seed}", "--out", "{work}/o-{round}"], writes: ["{work}/o-{round}"])])])"#,
+        )
+        .unwrap();
+        let args: Vec<_> = p.stages.iter().map(|s| s.template.join(" ")).collect();
+        assert_eq!(
+            args,
+            ["x --seed 7 --out {work}/o-1 writes:{work}/o-1", "x --seed 17 --out {work}/o-2 writes:{work}/o-2"]
+        );
     }
 }

@@ -10,7 +10,7 @@ use std::time::Instant;
 use sha2::{Digest, Sha256};
 
 use crate::store::{Record, Status, Store, files_under, hash_path, hex};
-use crate::{Action, Plan, RecipeError, Result, io_err};
+use crate::{Action, Keep, Plan, RecipeError, Result, io_err};
 
 /// The environment variable a stage's command finds its recipe and stage in
 /// (`recipes/sit.ron#handover/r2/finetune`); the command line a manifest records names it.
@@ -48,6 +48,8 @@ pub struct Runner<'a> {
     identity: Vec<Option<String>>,
     /// Whether a group goes on after round K, once known.
     go_on: HashMap<(usize, usize), Option<bool>>,
+    /// The round a group keeps (0: none of them), once its rounds are done.
+    kept: HashMap<usize, usize>,
     hashes: HashMap<PathBuf, String>,
 }
 
@@ -62,6 +64,7 @@ impl<'a> Runner<'a> {
             active: vec![None; n],
             identity: vec![None; n],
             go_on: HashMap::new(),
+            kept: HashMap::new(),
             hashes: HashMap::new(),
         }
     }
@@ -73,9 +76,20 @@ impl<'a> Runner<'a> {
             None | Some((_, 1)) => Some(true),
             Some((g, r)) => self.goes_on(g, r - 1)?,
         };
-        // A stage after rounds not decided yet is not known either (its inputs depend on them).
+        // A stage after rounds not decided yet is not known either (its inputs depend on them),
+        // nor one after a group that keeps its best round before every round is done.
         if active == Some(true) && stage.deps.iter().any(|&d| self.active[d].is_none()) {
             active = None;
+        }
+        if active == Some(true) {
+            for d in self.plan.ancestors(i) {
+                if let Some((g, _)) = self.plan.stages[d].round
+                    && stage.round.is_none_or(|(h, _)| h != g)
+                    && self.kept_round(g)?.is_none()
+                {
+                    active = None;
+                }
+            }
         }
         self.active[i] = active;
         if active == Some(true) {
@@ -131,7 +145,7 @@ impl<'a> Runner<'a> {
             h.update([0]);
         }
         for &d in &stage.deps {
-            if self.active[d] == Some(true) {
+            if self.active[d] == Some(true) && !self.left_behind(d, i) {
                 let id = self.identity[d].as_deref().expect("earlier stages are settled first");
                 h.update(id.as_bytes());
             }
@@ -156,7 +170,8 @@ impl<'a> Runner<'a> {
         let range = group.rounds[r - 1].clone();
         let decided = if range.clone().any(|i| self.active[i] == Some(false)) {
             Some(false)
-        } else if let Some(stop) = group.stop.clone() {
+        } else if let Some(stop) = group.stop.clone().filter(|s| s.gain_below.is_some()) {
+            let gain_below = stop.gain_below.expect("filtered");
             let mut all_done = true;
             for i in range.clone() {
                 all_done &= self.done(i)?;
@@ -180,7 +195,7 @@ impl<'a> Runner<'a> {
                     None => Some(true),
                     Some(b) => {
                         let gain = 100.0 * (now - b);
-                        let go = gain >= stop.gain_below;
+                        let go = gain >= gain_below;
                         tracing::info!(group = %group.name, round = r, gain, go_on = go, "stopping rule");
                         println!(
                             "{}: round {r} gained {gain:+.1} points ({:.1} → {:.1} % in zone {}); {}",
@@ -188,11 +203,7 @@ impl<'a> Runner<'a> {
                             100.0 * b,
                             100.0 * now,
                             stop.zone,
-                            if go {
-                                "another round".to_string()
-                            } else {
-                                format!("stops (under {} points)", stop.gain_below)
-                            }
+                            if go { "another round".to_string() } else { format!("stops (under {gain_below} points)") }
                         );
                         Some(go)
                     }
@@ -203,6 +214,65 @@ impl<'a> Runner<'a> {
         };
         self.go_on.insert((g, r), decided);
         Ok(decided)
+    }
+
+    /// The round group `g` keeps for the stages after it (0: none, the baseline was better),
+    /// once every round that runs is done; `None` before. A group that keeps its last round
+    /// keeps every round (each overwrites the one before).
+    pub fn kept_round(&mut self, g: usize) -> Result<Option<usize>> {
+        let group = &self.plan.groups[g];
+        let Some(stop) = group.stop.clone().filter(|s| s.keep == Keep::Best) else {
+            return Ok(Some(group.rounds.len()));
+        };
+        if let Some(&k) = self.kept.get(&g) {
+            return Ok(Some(k));
+        }
+        let mut best = (0, f64::NEG_INFINITY);
+        if let Some(b) = &stop.baseline {
+            best.1 = metric(b, &stop.zone)?;
+        }
+        for (r, range) in group.rounds.clone().into_iter().enumerate() {
+            let mut ran = true;
+            for i in range {
+                match self.active[i] {
+                    None => return Ok(None),
+                    Some(false) => ran = false,
+                    Some(true) if !self.done(i)? => return Ok(None),
+                    Some(true) => {}
+                }
+            }
+            if !ran {
+                continue;
+            }
+            let round = r + 1;
+            let rate = metric(
+                &stop.report.replace("{round}", &round.to_string()).replace("{prev}", &r.to_string()),
+                &stop.zone,
+            )?;
+            if rate > best.1 {
+                best = (round, rate);
+            }
+        }
+        tracing::info!(group = %group.name, round = best.0, rate = best.1, "keeps its best round");
+        println!(
+            "{}: keeps {} ({:.1} % in zone {})",
+            group.name,
+            if best.0 == 0 { "none of its rounds (the baseline)".to_string() } else { format!("round {}", best.0) },
+            100.0 * best.1,
+            stop.zone
+        );
+        self.kept.insert(g, best.0);
+        Ok(Some(best.0))
+    }
+
+    /// Whether stage `a`, of a rounds group, is a round after the one its group keeps, so that
+    /// stage `i` after the group neither restores what it wrote nor depends on it.
+    fn left_behind(&self, a: usize, i: usize) -> bool {
+        match (self.plan.stages[a].round, self.plan.stages[i].round) {
+            (Some((g, _)), Some((h, _))) if g == h => false,
+            (Some((g, r)), _) => self.kept.get(&g).is_some_and(|&k| r > k),
+            _ => false,
+        }
     }
 
     /// Keeps what stage `i` (settled) made for its current inputs (`recipe adopt`): a record
@@ -292,7 +362,7 @@ impl<'a> Runner<'a> {
         };
         let mut expected = BTreeMap::new();
         for a in self.plan.ancestors(i) {
-            if self.active[a] != Some(true) {
+            if self.active[a] != Some(true) || self.left_behind(a, i) {
                 continue;
             }
             let want = self.identity[a].as_deref().expect("settled");
@@ -656,6 +726,64 @@ mod round_tests {
         assert_eq!(run("b"), Summary { ran: 0, skipped: 7, stopped: 2 });
         assert_eq!(std::fs::read_to_string(dir.join("work/lib/log")).unwrap(), "1a\n2a\n3a\n");
         assert_eq!(run("c").ran, 6, "a stage not adopted runs again");
+    }
+
+    /// Seeds of one training as rounds (each writes `lib/seed` afresh), the best kept by its
+    /// report, and a stage after the group that reads `lib/seed`.
+    fn best_of(dir: &Path, rates: &str, baseline: &str) -> PathBuf {
+        let work = dir.join("work");
+        let text = format!(
+            r#"(work: "{work}", vars: {{"rates": "{rates}"}}, stages: [
+                Run(name: "base", args: ["-c", "mkdir -p {{work}}/ev-0 && echo '{{\"zones\":[{{\"zone\":\"all\",\"success_rate\":{baseline}}}]}}' > {{work}}/ev-0/report.json && mkdir -p {{work}}/lib && echo 0 > {{work}}/lib/seed"],
+                    writes: ["{{work}}/ev-0", "{{work}}/lib"]),
+                Rounds(name: "seeds", max: 3, stop: (report: "{{work}}/ev-{{round}}/report.json", keep: Best, baseline: "{{work}}/ev-0/report.json"), stages: [
+                    Run(name: "train", args: ["-c", "echo {{round}} > {{work}}/lib/seed"], writes: ["{{work}}/lib"]),
+                    Run(name: "eval", args: ["-c", "mkdir -p {{work}}/ev-{{round}} && r=$(echo {{rates}} | cut -d, -f{{round}}) && echo '{{\"zones\":[{{\"zone\":\"all\",\"success_rate\":'$r'}}]}}' > {{work}}/ev-{{round}}/report.json"],
+                        writes: ["{{work}}/ev-{{round}}"], after: ["train"]),
+                ]),
+                Run(name: "after", args: ["-c", "cp $0 {{work}}/used", "{{work}}/lib/seed"], writes: ["{{work}}/used"]),
+            ])"#,
+            work = work.display()
+        );
+        let path = dir.join("r.ron");
+        std::fs::write(&path, text).unwrap();
+        path
+    }
+
+    #[test]
+    fn a_group_that_keeps_its_best_round_runs_every_round_and_builds_on_the_best() {
+        let dir = temp("best");
+        let run = |rates: &str, baseline: &str| {
+            let plan = Plan::load(&best_of(&dir, rates, baseline), None).unwrap();
+            Runner::new(&plan, PathBuf::from("/bin/sh")).run_local().unwrap()
+        };
+        let used = || std::fs::read_to_string(dir.join("work/used")).unwrap();
+        // Every round runs (no gain rule); round 2 is the best, so `after` reads its output,
+        // though round 3 wrote the library last.
+        assert_eq!(run("0.5,0.7,0.6", "0.4"), Summary { ran: 1 + 3 * 2 + 1, skipped: 0, stopped: 0 });
+        assert_eq!(used(), "2\n");
+        assert_eq!(run("0.5,0.7,0.6", "0.4"), Summary { ran: 0, skipped: 8, stopped: 0 });
+        // Other evaluations (they run again) make round 3 the best: what comes after runs
+        // again, over round 3's output; the trainings are not rerun.
+        assert_eq!(run("0.5,0.7,0.8", "0.4"), Summary { ran: 3 + 1, skipped: 1 + 3, stopped: 0 });
+        assert_eq!(used(), "3\n");
+        // A baseline at least as good as every round (the first stage changes, so everything
+        // runs again): what comes after sees what the group started from.
+        assert_eq!(run("0.5,0.7,0.8", "0.8").ran, 8);
+        assert_eq!(used(), "0\n");
+    }
+
+    #[test]
+    fn a_rule_that_neither_stops_nor_keeps_the_best_is_refused() {
+        let dir = temp("norule");
+        let text = format!(
+            r#"(work: "{}/w", stages: [Rounds(name: "g", max: 2, stop: (report: "{{work}}/r-{{round}}.json"), stages: [
+                Run(name: "a", args: ["-c", "true"])])])"#,
+            dir.display()
+        );
+        std::fs::write(dir.join("r.ron"), text).unwrap();
+        let e = Plan::load(&dir.join("r.ron"), None).unwrap_err().to_string();
+        assert!(e.contains("rounds `g`") && e.contains("gain_below") && e.contains("keep: Best"), "{e}");
     }
 
     #[test]

@@ -5,9 +5,9 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Subcommand};
-use repertoire_recipe::Plan;
 use repertoire_recipe::run::{Runner, Standing};
 use repertoire_recipe::slurm::{self, SlurmOptions};
+use repertoire_recipe::{Keep, Plan};
 
 #[derive(Debug, Subcommand)]
 pub enum RecipeCommand {
@@ -313,19 +313,28 @@ fn plan_table(runner: &Runner) -> Result<String> {
     }
     let _ = writeln!(out, "\n{}", counts.iter().map(|(k, v)| format!("{v} {k}")).collect::<Vec<_>>().join(", "));
     for g in &plan.groups {
-        let rule = match &g.stop {
-            Some(s) => format!(
-                "stops when a round gains under {} points of success in zone `{}` ({}{})",
-                s.gain_below,
-                s.zone,
-                s.report,
-                s.baseline.as_ref().map_or(String::new(), |b| format!("; round 1 against {b}"))
-            ),
-            None => "runs every round".into(),
-        };
-        let _ = writeln!(out, "rounds `{}`: at most {}; {rule}", g.name, g.rounds.len());
+        let _ = writeln!(out, "rounds `{}`: at most {}; {}", g.name, g.rounds.len(), group_rule(g));
     }
     Ok(out)
+}
+
+/// What a rounds group's rule says, in words.
+fn group_rule(g: &repertoire_recipe::Group) -> String {
+    let Some(s) = &g.stop else { return "runs every round, keeps the last".into() };
+    let stops = match s.gain_below {
+        Some(x) => format!("stops when a round gains under {x} points"),
+        None => "runs every round".into(),
+    };
+    let keeps = match s.keep {
+        Keep::Last => "keeps the last round",
+        Keep::Best => "keeps the best round",
+    };
+    format!(
+        "{stops}, {keeps}, by the success in zone `{}` ({}{})",
+        s.zone,
+        s.report,
+        s.baseline.as_ref().map_or(String::new(), |b| format!("; against {b} before round 1"))
+    )
 }
 
 fn which(tool: &str) -> bool {
