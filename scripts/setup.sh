@@ -9,7 +9,7 @@
 #     MuJoCo humanoid (envs/mujoco/assets/humanoid.xml in the `gymnasium` 1.4.0 wheel), checked
 #     against its SHA-256 (its body map is committed in bodies/);
 #  3. the replay page's npm packages (three.js, inlined into every replay page; playwright-core,
-#     which drives the browser test), by `npm ci` in scenes/web from its committed lock file;
+#     which drives the browser test), by `npm ci` in crates/scenes/web from its committed lock file;
 #  4. Debian's `chromium` for that test (apt-get, as root or through sudo), if /usr/bin/chromium is
 #     missing, Debian's `slurm-wlm` and `munge` (a real one-node Slurm for the --slurm test), if
 #     sbatch is missing, and Debian's DejaVu fonts (`fonts-dejavu-core`) for chart text, if no
@@ -24,7 +24,7 @@ lib="$lib_dir/libmujoco.so.$MUJOCO_VERSION"
 
 clips_dir="$root/third_party/clips"
 bodies_dir="$root/third_party/bodies"
-web_dir="$root/scenes/web"
+web_dir="$root/crates/scenes/web"
 
 # Steps 3 and 4. Without npm or a way to install chromium this says what to do and goes on: only
 # the replay pages and their browser test need them.
@@ -32,7 +32,7 @@ web_and_browser() {
   local stamp="$web_dir/node_modules/.setup-lock"
   if ! cmp -s "$web_dir/package-lock.json" "$stamp" 2>/dev/null; then
     if command -v npm >/dev/null; then
-      echo "setup: installing the replay page's npm packages in scenes/web (npm ci)" >&2
+      echo "setup: installing the replay page's npm packages in crates/scenes/web (npm ci)" >&2
       (cd "$web_dir" && npm ci --no-audit --no-fund --loglevel=error >&2)
       cp "$web_dir/package-lock.json" "$stamp"
     else
@@ -66,7 +66,7 @@ web_and_browser() {
         "install slurm-wlm and munge for --slurm and its test" >&2
     fi
   fi
-  # Chart text (report/src/lib.rs FONT_CANDIDATES, or $REPERTOIRE_FONT).
+  # Chart text (crates/report/src/lib.rs FONT_CANDIDATES, or $REPERTOIRE_FONT).
   local font
   for font in "${REPERTOIRE_FONT:-}" /usr/share/fonts/truetype/dejavu/DejaVuSans.ttf \
     /usr/share/fonts/truetype/liberation/LiberationSans-Regular.ttf /usr/share/fonts/TTF/DejaVuSans.ttf \

@@ -71,20 +71,18 @@ fn a_pelvis_without_a_joint_gets_a_free_one() {
     write(&dir, "body.map.ron", &map);
     let scene = "Scenario(name: \"own\", body: Mjcf(file: \"body.xml\", map: \"body.map.ron\"))";
     write(&dir, "scene.ron", scene);
-    let model =
-        WorldModel::build(ScenarioFile::load(&dir.join("scene.ron")).unwrap()).expect("loads with a free joint");
+    let model = WorldModel::build(ScenarioFile::load(dir.join("scene.ron")).unwrap()).expect("loads with a free joint");
     assert!(model.body.mjcf.contains(r#"<freejoint name="repertoire/root"/>"#));
     assert_eq!(model.body.mjcf.lines().count(), xml.lines().count(), "no line added");
     assert_eq!(model.index.dof(), 25);
     // The map may also leave root_joint out when the pelvis has its own free joint.
     write(&dir, "body.xml", &builtin.mjcf);
-    let model = WorldModel::build(ScenarioFile::load(&dir.join("scene.ron")).unwrap()).expect("its own free joint");
+    let model = WorldModel::build(ScenarioFile::load(dir.join("scene.ron")).unwrap()).expect("its own free joint");
     assert!(!model.body.mjcf.contains("repertoire/root"));
     // A root_joint on another part than the pelvis is refused, saying what to name instead.
     let map = builtin.map_text.replace("pelvis: \"pelvis\"", "pelvis: \"torso\"");
     assert_ne!(map, builtin.map_text);
     write(&dir, "body.map.ron", &map);
-    let msg =
-        WorldModel::build(ScenarioFile::load(&dir.join("scene.ron")).unwrap()).err().expect("refused").to_string();
+    let msg = WorldModel::build(ScenarioFile::load(dir.join("scene.ron")).unwrap()).err().expect("refused").to_string();
     assert!(msg.contains("body.map.ron") && msg.contains("is on body `pelvis`, not on the pelvis `torso`"), "{msg}");
 }

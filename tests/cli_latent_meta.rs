@@ -133,6 +133,20 @@ fn a_latent_high_level_trains_and_evaluates_on_the_sitting_scenario() {
     }
     assert_eq!(json["trials"].as_array().unwrap().len(), 9);
     assert!(out.join("report.md").exists() && out.join("trials.csv").exists());
+    // Evaluated as every controller is: its worst episodes played again, recorded (and
+    // checked to end as they did), a frame per control tick under the skill `latent`.
+    let worst: Vec<_> = std::fs::read_dir(out.join("worst"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|x| x == "rec"))
+        .collect();
+    assert!(!worst.is_empty(), "no worst episode recorded in {}", out.display());
+    for path in &worst {
+        let rec = repertoire::scenes::Recording::load(path).unwrap();
+        assert_eq!(rec.header.skills, ["latent"], "{}", path.display());
+        assert!(rec.frames() > 1 && rec.skill.iter().all(|&k| k == 0), "{}", path.display());
+        assert!(rec.header.title.starts_with("latent high level, zone"), "{}", rec.header.title);
+    }
 
     // `run` on the latent scenario runs the latent high level, not the skills' controller.
     let run_out = dir.join("run-out");

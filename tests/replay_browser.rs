@@ -10,7 +10,8 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-const SETUP: &str = "run `bash scripts/setup.sh` (it installs Debian's chromium and runs `npm ci` in scenes/web)";
+const SETUP: &str =
+    "run `bash scripts/setup.sh` (it installs Debian's chromium and runs `npm ci` in crates/scenes/web)";
 
 fn artifacts() -> PathBuf {
     // CARGO_TARGET_TMPDIR is <target>/tmp.
@@ -24,7 +25,7 @@ fn replay_page_draws_plays_and_logs_no_error() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let chromium = std::env::var("CHROMIUM").unwrap_or_else(|_| "/usr/bin/chromium".into());
     assert!(Path::new(&chromium).exists(), "{chromium} is missing: {SETUP}");
-    let web = root.join("scenes/web/node_modules");
+    let web = root.join("crates/scenes/web/node_modules");
     assert!(
         web.join("three/build/three.module.js").exists() && web.join("playwright-core").exists(),
         "{} lacks three or playwright-core: {SETUP}",

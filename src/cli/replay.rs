@@ -17,7 +17,7 @@ pub struct ReplayArgs {
     /// The HTML page to write (default: beside the recording, `.html`); for a folder, a folder.
     #[arg(short, long)]
     pub out: Option<PathBuf>,
-    /// The folder holding node_modules/three (default: scenes/web, installed by scripts/setup.sh).
+    /// The folder holding node_modules/three (default: crates/scenes/web, installed by scripts/setup.sh).
     #[arg(long)]
     pub web: Option<PathBuf>,
     /// Also render a contact sheet of the recording into this PNG: --frames evenly spaced
@@ -79,7 +79,7 @@ pub struct FallCheckArgs {
     pub cut_out: Option<PathBuf>,
 }
 
-/// The web folder: `--web`, else `$REPERTOIRE_WEB`, else `scenes/web` in the working
+/// The web folder: `--web`, else `$REPERTOIRE_WEB`, else `crates/scenes/web` in the working
 /// directory, else the one in the source tree this binary was built from.
 pub fn web_dir(arg: Option<&Path>) -> PathBuf {
     if let Some(p) = arg {
@@ -152,7 +152,7 @@ pub fn replay(args: ReplayArgs) -> Result<()> {
 fn filmstrip(page: &Path, png: &Path, web: &Path, args: &ReplayArgs) -> Result<()> {
     let script = web.join("filmstrip.mjs");
     if !script.exists() {
-        bail!("{} is missing: the filmstrip is drawn by it (scenes/web/filmstrip.mjs)", script.display());
+        bail!("{} is missing: the filmstrip is drawn by it (crates/scenes/web/filmstrip.mjs)", script.display());
     }
     if let Some(dir) = png.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;

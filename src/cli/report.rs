@@ -134,7 +134,7 @@ fn evaluation_section(dir: &Path, out: &Path) -> Result<Option<Section>> {
         let pair = |stem: &Path| [stem.with_extension("png"), stem.with_extension("svg")];
         match serde_json::from_str::<MetaReport>(&text) {
             Ok(r) => {
-                r.plot(&out)?;
+                r.plot(out)?;
                 let mut charts = vec![[out.join("heatmap.png"), out.join("heatmap.svg")]];
                 for (side, _) in &r.transitions {
                     charts.push(pair(&out.join(format!("transitions-{side}"))));
@@ -144,10 +144,10 @@ fn evaluation_section(dir: &Path, out: &Path) -> Result<Option<Section>> {
             Err(sit) => {
                 // A warehouse or toss evaluation; otherwise the sitting report's complaint.
                 if let Ok(r) = serde_json::from_str::<WarehouseReport>(&text) {
-                    let charts = r.plot(&out)?.iter().map(|s| pair(s)).collect();
+                    let charts = r.plot(out)?.iter().map(|s| pair(s)).collect();
                     return Ok(Some(Section { title: "Warehouse evaluation".into(), text: r.markdown(), charts }));
                 } else if let Ok(r) = serde_json::from_str::<TossReport>(&text) {
-                    let charts = vec![pair(&r.plot(&out)?)];
+                    let charts = vec![pair(&r.plot(out)?)];
                     return Ok(Some(Section { title: "Toss evaluation".into(), text: r.markdown(), charts }));
                 } else {
                     return Err(

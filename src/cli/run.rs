@@ -88,7 +88,7 @@ fn run_controller(args: &RunArgs, skills: Vec<String>) -> Result<()> {
     let (plan, worst) = quick_plan(&setup, args);
     let secs = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from(format!("runs/run-{secs}-s{}", args.seed)));
-    super::meta::eval::evaluate_and_report(&setup, &loaded, &plan, (worst, &[]), &out)?;
+    super::meta::eval::evaluate_and_report(&setup, loaded.controller()?.as_ref(), &plan, (worst, &[]), &out)?;
     println!("`repertoire meta eval` runs the full evaluation");
     Ok(())
 }
@@ -196,16 +196,10 @@ fn run_latent(model: Arc<WorldModel>, dir: &std::path::Path, args: RunArgs) -> R
     let zones = model.scenario.scenario.spawn.iter().map(|z| z.name.clone()).collect();
     let secs = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
     let out = args.out.unwrap_or_else(|| PathBuf::from(format!("runs/run-{secs}-s{}", args.seed)));
-    let eval = super::meta::LatentEval {
-        library,
-        meta: Some(meta),
-        trials: args.trials,
-        zones,
-        batch: 64,
-        seed: args.seed,
-        out: Some(out),
-    };
-    super::meta::eval_latent(model, dir, eval)
+    let plan =
+        EvalPlan { zones, trials: args.trials, batch: 64, seed: args.seed, pickup: None, strike_zone: (0, 0, 0) };
+    let eval = super::meta::LatentEval { library, meta: Some(meta), out: Some(out) };
+    super::meta::eval_latent(model, dir, eval, &plan, (Worst::PerZone(1), &[]))
 }
 
 /// The meta-controller folder `run` looks in for `file`'s scenario (see

@@ -6,12 +6,12 @@
 // - for each FRAME TEXT pair, the overlay shows TEXT once the slider is moved to FRAME.
 // - the timeline: slider and skill strip aligned, every legend entry shown, a fall in red, each
 //   foot's floor contact in its gait lane.
-// Opens Chromium through scenes/web/chromium.mjs. Prints one JSON line of measurements; exits 1
+// Opens Chromium through crates/scenes/web/chromium.mjs. Prints one JSON line of measurements; exits 1
 // with the reason on failure.
 
 import { resolve } from 'node:path';
 import { pathToFileURL } from 'node:url';
-import { open } from '../../scenes/web/chromium.mjs';
+import { open } from '../../crates/scenes/web/chromium.mjs';
 
 const [page_path, shot_path, ...expect] = process.argv.slice(2);
 if (!page_path || !shot_path || expect.length % 2) {

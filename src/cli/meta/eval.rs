@@ -8,7 +8,7 @@ use std::time::Instant;
 use anyhow::{Result, bail};
 use repertoire_meta::evaluation::{EvalPlan, Pick, TaskReport, Worst, evaluate_task};
 use repertoire_meta::tasks::task_eval::StartGrid;
-use repertoire_meta::{MetaSetup, TaskSpec};
+use repertoire_meta::{Arena, Controller, MetaSetup, TaskSpec};
 
 use crate::cli::controller::{Choice, ControllerArgs, GraphArgs, Loaded, ScenarioArgs};
 
@@ -104,24 +104,23 @@ pub fn eval(a: EvalArgs) -> Result<()> {
             bail!("--controller chooses among the skills: a latent low level has only its trained high level");
         }
         super::no_skill_options(&a.graph.chain, &a.graph.skills)?;
-        let zones = super::zones_or_all(a.zones, &model.scenario.scenario);
-        let eval = super::LatentEval {
-            library: a.scenario.library,
-            meta: a.controller.meta,
+        let plan = EvalPlan {
+            zones: super::zones_or_all(a.zones, &model.scenario.scenario),
             trials: a.trials.unwrap_or(10_000),
-            zones,
             batch: a.batch,
             seed: a.seed,
-            out: a.out,
+            pickup: None,
+            strike_zone: (0, 0, 0),
         };
-        return super::eval_latent(model, &dir, eval);
+        let eval = super::LatentEval { library: a.scenario.library, meta: a.controller.meta, out: a.out };
+        return super::eval_latent(model, &dir, eval, &plan, (Worst::Overall(a.worst), &a.record));
     }
     let setup = super::setup(a.scenario.file.as_ref(), &a.scenario.library, &a.graph.chain, &a.graph.skills)?;
     let loaded = Loaded::load(&a.controller, &setup, &a.scenario.library, a.seed)?;
     let plan = a.plan(&setup, &loaded.choice);
     let out = a.out.clone().unwrap_or_else(|| loaded.default_out(&setup));
     println!("{}\n", loaded.describe()?);
-    evaluate_and_report(&setup, &loaded, &plan, (Worst::Overall(a.worst), &a.record), &out)?;
+    evaluate_and_report(&setup, loaded.controller()?.as_ref(), &plan, (Worst::Overall(a.worst), &a.record), &out)?;
     Ok(())
 }
 
@@ -140,19 +139,18 @@ fn parse_pick(s: &str) -> std::result::Result<Pick, String> {
 /// Evaluates `loaded` as `plan` says, records the `worst` episodes and those `picks` choose,
 /// prints the report and writes it into `out` (the report first, so a recording that fails
 /// loses no evaluation).
-pub fn evaluate_and_report(
-    setup: &Arc<MetaSetup>,
-    loaded: &Loaded,
+pub fn evaluate_and_report<A: Arena>(
+    setup: &Arc<A>,
+    controller: &dyn Controller<A>,
     plan: &EvalPlan,
     (worst, picks): (Worst, &[Pick]),
     out: &Path,
 ) -> Result<TaskReport> {
-    let controller = loaded.controller()?;
     let started = Instant::now();
-    let mut report = evaluate_task(setup, controller.as_ref(), plan)?;
+    let mut report = evaluate_task(setup, controller, plan)?;
     let seconds = started.elapsed().as_secs_f64();
     report.write(out)?;
-    let recs = report.record_worst(setup, controller.as_ref(), plan, worst, out)?;
+    let recs = report.record_worst(setup, controller, plan, worst, out)?;
     if !recs.is_empty() {
         report.write(out)?;
     }
@@ -168,7 +166,7 @@ pub fn evaluate_and_report(
         );
     }
     for &pick in picks {
-        let recs = report.record_picked(setup, controller.as_ref(), plan, pick, out)?;
+        let recs = report.record_picked(setup, controller, plan, pick, out)?;
         crate::cli::replay::pages_beside(&recs);
         let dir = out.join(pick.folder());
         println!("{} {} episodes recorded in {}", recs.len(), pick.folder(), dir.display());

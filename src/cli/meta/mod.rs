@@ -9,6 +9,7 @@ use clap::Subcommand;
 use repertoire_learn::classify::ClassifierConfig;
 use repertoire_learn::env::Env as _;
 use repertoire_learn::ppo::IterationMetrics;
+use repertoire_meta::evaluation::{EvalPlan, Pick, Worst};
 use repertoire_meta::handover::deliver::{DeliveryWindow, deliver};
 use repertoire_meta::handover::distill::{DistillOptions, Teacher, distill};
 use repertoire_meta::handover::readiness::{ReadinessOptions, learn};
@@ -952,18 +953,22 @@ fn print_training(
     }
 }
 
-/// `meta eval` through the latent low level.
+/// `meta eval` through the latent low level: where the latent high level and its evaluation lie.
 pub(super) struct LatentEval {
     pub(super) library: PathBuf,
     pub(super) meta: Option<PathBuf>,
-    pub(super) trials: usize,
-    pub(super) zones: Vec<String>,
-    pub(super) batch: usize,
-    pub(super) seed: u64,
     pub(super) out: Option<PathBuf>,
 }
 
-pub(super) fn eval_latent(model: Arc<WorldModel>, dir: &Path, a: LatentEval) -> Result<()> {
+/// Evaluates the latent high level of `model`'s scenario (latent model in `dir`) as `plan`
+/// says, as every controller is evaluated: report, worst episodes and picks recorded.
+pub(super) fn eval_latent(
+    model: Arc<WorldModel>,
+    dir: &Path,
+    a: LatentEval,
+    plan: &EvalPlan,
+    recorded: (Worst, &[Pick]),
+) -> Result<()> {
     let meta = a.meta.unwrap_or_else(|| default_latent_meta(&a.library, &model));
     let manifest = latent::read_manifest(&meta)?;
     let setup = Arc::new(
@@ -972,9 +977,7 @@ pub(super) fn eval_latent(model: Arc<WorldModel>, dir: &Path, a: LatentEval) -> 
     );
     let (_, policy) = latent::load(&meta, &setup)?;
     let out = a.out.unwrap_or_else(|| meta.join("eval"));
-    let report = latent::evaluate(&setup, &policy, &a.zones, a.trials, a.batch, a.seed)?;
-    print!("{}", report.markdown());
-    report.write(&out)?;
-    println!("\nreport.md, trials.csv and report.json written to {}", out.display());
+    let controller = latent::LatentController { policy };
+    eval::evaluate_and_report(&setup, &controller, plan, recorded, &out)?;
     Ok(())
 }
