@@ -199,7 +199,7 @@ fn a_drawn_throw_reaches_the_catch_point_after_its_flight_time() {
     let mut world = model.new_world();
     let mut rng = StdRng::seed_from_u64(8);
     let spec = ThrowSpec::default();
-    spec.validate("default").unwrap();
+    spec.validate().unwrap();
     let target = [0.0, 3.0, 1.2];
     let dt = model.control_dt();
     for k in 0..6 {
@@ -228,7 +228,7 @@ fn a_drawn_throw_reaches_the_catch_point_after_its_flight_time() {
         assert!((side - throw.lateral.abs() * t).abs() < 0.02, "throw {k}: sideways {side}");
     }
     let bad = ThrowSpec { v_x: Param::Fixed(0.0), ..ThrowSpec::default() };
-    assert!(bad.validate("toss.ron").unwrap_err().contains("v_x"));
+    assert_eq!(bad.validate().unwrap_err().field, "throw.v_x");
 }
 
 #[test]

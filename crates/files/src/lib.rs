@@ -25,6 +25,27 @@ pub struct WriteError {
     pub source: std::io::Error,
 }
 
+/// A value of a file that breaks a rule (a scenario's fall rule, a skill spec's reward weight):
+/// the field as written in the file (`fall.prop_s`), its value, and the rule. The caller adds
+/// the file and the line.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("`{field}` is {value}; {rule}")]
+pub struct FieldError {
+    /// The field, dotted from the part of the file that was checked (`fall.prop_s`).
+    pub field: String,
+    /// Its value, as the message shows it.
+    pub value: String,
+    /// What it must be.
+    pub rule: String,
+}
+
+impl FieldError {
+    /// `field` is `value`, and must be as `rule` says.
+    pub fn new(field: impl Into<String>, value: impl std::fmt::Display, rule: impl Into<String>) -> FieldError {
+        FieldError { field: field.into(), value: value.to_string(), rule: rule.into() }
+    }
+}
+
 static COUNTER: AtomicU64 = AtomicU64::new(0);
 
 /// A hidden temporary sibling of `path` that keeps its extension (`dir/.stem.partial-PID-N.ext`),

@@ -43,18 +43,20 @@ impl SkillGraph {
     /// This graph restricted to `keep` (in this graph's order): the "one turn direction only"
     /// ablation. `Err` names a skill the graph lacks, or the start skills when `keep` drops them
     /// all (no episode could start).
-    pub fn restricted(&self, keep: &[String]) -> Result<Self, String> {
+    pub fn restricted(&self, keep: &[String]) -> Result<Self, RestrictError> {
         if let Some(missing) = keep.iter().find(|k| self.index(k).is_none()) {
-            return Err(format!("skill `{missing}` is not in the graph ({})", self.names().join(", ")));
+            return Err(RestrictError::NotInGraph {
+                skill: missing.clone(),
+                graph: self.names().into_iter().map(String::from).collect(),
+            });
         }
         let starts: Vec<&str> =
             self.names().into_iter().zip(&self.start).filter(|(_, s)| **s).map(|(n, _)| n).collect();
         if !starts.iter().any(|s| keep.iter().any(|k| k == s)) {
-            return Err(format!(
-                "the skills kept ({}) leave out every start skill of the graph ({}): no episode could start; keep one of them, or give a fixed order with --chain",
-                keep.join(", "),
-                starts.join(", ")
-            ));
+            return Err(RestrictError::NoStart {
+                kept: keep.to_vec(),
+                starts: starts.into_iter().map(String::from).collect(),
+            });
         }
         let graph = self.graph.filter_map(|_, name| keep.contains(name).then(|| name.clone()), |_, &()| Some(()));
         let start = self
@@ -127,4 +129,29 @@ impl SkillGraph {
         self.allowed(from, &mut mask);
         mask.get(to).copied().unwrap_or(false)
     }
+}
+
+/// Why [`SkillGraph::restricted`] cannot keep the skills it was given.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum RestrictError {
+    /// A skill the graph lacks.
+    #[error("skill `{skill}` is not in the graph ({})", graph.join(", "))]
+    NotInGraph {
+        /// The skill.
+        skill: String,
+        /// The graph's skills.
+        graph: Vec<String>,
+    },
+    /// The kept skills leave out every skill an episode may start with.
+    #[error(
+        "the skills kept ({}) leave out every start skill of the graph ({}): no episode could start; keep one of them, or give a fixed order with --chain",
+        kept.join(", "),
+        starts.join(", ")
+    )]
+    NoStart {
+        /// The skills kept.
+        kept: Vec<String>,
+        /// The graph's start skills.
+        starts: Vec<String>,
+    },
 }

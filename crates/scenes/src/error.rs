@@ -50,12 +50,13 @@ pub enum SceneError {
         source: std::io::Error,
     },
     /// A recording file that is not one, is cut short, corrupt or inconsistent.
-    #[error("{}: {message}", file.display())]
+    #[error("{}: {problem}", file.display())]
     Recording {
         /// The recording file.
         file: PathBuf,
         /// What is wrong.
-        message: String,
+        #[source]
+        problem: crate::record::RecordingError,
     },
     /// A runtime request that does not fit the world (wrong action length, unknown prop, ...).
     #[error("{0}")]

@@ -17,6 +17,7 @@
 //! recordings) gets the same answer; its timers travel in [`crate::World::snapshot`]. A fall
 //! latches: it stays until the world is reset or its state set by hand.
 
+use repertoire_files::FieldError;
 use serde::{Deserialize, Serialize};
 
 use crate::body::BodyIndex;
@@ -57,7 +58,7 @@ impl FallRule {
     }
 
     /// Checks the values; `Err` names the first bad field.
-    pub fn check(&self) -> std::result::Result<(), String> {
+    pub fn check(&self) -> std::result::Result<(), FieldError> {
         for (name, v) in [
             ("floor_s", self.floor_s),
             ("prop_s", self.prop_s),
@@ -65,13 +66,14 @@ impl FallRule {
             ("inverted_s", self.inverted_s),
         ] {
             if !(v.is_finite() && v >= 0.0) {
-                return Err(format!("fall.{name} is {v}; it must be a number of seconds ≥ 0"));
+                return Err(FieldError::new(format!("fall.{name}"), v, "it must be a number of seconds ≥ 0"));
             }
         }
         if !(self.pelvis_below.is_finite() && (0.0..1.0).contains(&self.pelvis_below)) {
-            return Err(format!(
-                "fall.pelvis_below is {}; it must be a share of the standing pelvis height in [0, 1)",
-                self.pelvis_below
+            return Err(FieldError::new(
+                "fall.pelvis_below",
+                self.pelvis_below,
+                "it must be a share of the standing pelvis height in [0, 1)",
             ));
         }
         Ok(())
@@ -283,9 +285,9 @@ impl FallMonitor {
     }
 
     /// Restores [`FallMonitor::snapshot`]'s numbers; `Err` says what is wrong with them.
-    pub fn restore(&mut self, s: &[f64]) -> std::result::Result<(), String> {
+    pub fn restore(&mut self, s: &[f64]) -> std::result::Result<(), FallStateError> {
         if s.len() != FALL_STATE_LEN {
-            return Err(format!("a fall state has {FALL_STATE_LEN} values, not {}", s.len()));
+            return Err(FallStateError::Length(s.len()));
         }
         let code = s[4];
         let fall = if code == 0.0 {
@@ -294,12 +296,23 @@ impl FallMonitor {
             let cause = (code.fract() == 0.0 && (1.0..=4.0).contains(&code))
                 .then(|| FallCause::from_code(code as u8))
                 .flatten()
-                .ok_or_else(|| format!("fall cause code {code} is not one of 1–4"))?;
+                .ok_or(FallStateError::Cause(code))?;
             Some(Fall { cause, body: s[5].max(0.0) as usize, prop: (s[6] >= 0.0).then_some(s[6] as usize), time: s[7] })
         };
         *self = Self { floor_t: s[0], prop_t: s[1], low_t: s[2], inverted_t: s[3], fall };
         Ok(())
     }
+}
+
+/// What is wrong with the numbers given to [`FallMonitor::restore`].
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum FallStateError {
+    /// Not [`FALL_STATE_LEN`] numbers.
+    #[error("a fall state has {FALL_STATE_LEN} values, not {0}")]
+    Length(usize),
+    /// A fall whose cause code is none of the causes'.
+    #[error("fall cause code {0} is not one of 1–4")]
+    Cause(f64),
 }
 
 #[cfg(test)]
@@ -381,16 +394,18 @@ mod tests {
         again.restore(&s).unwrap();
         assert_eq!(again, m);
         s[4] = 9.0;
-        assert!(again.restore(&s).unwrap_err().contains("cause code 9"));
+        assert_eq!(again.restore(&s), Err(FallStateError::Cause(9.0)));
+        assert_eq!(again.restore(&s[1..]), Err(FallStateError::Length(FALL_STATE_LEN - 1)));
     }
 
     #[test]
     fn bad_rules_are_refused_by_name() {
         assert!(FallRule::default().check().is_ok());
         let e = FallRule { prop_s: -1.0, ..FallRule::default() }.check().unwrap_err();
-        assert!(e.contains("fall.prop_s"), "{e}");
+        assert_eq!((e.field.as_str(), e.value.as_str()), ("fall.prop_s", "-1"));
         let e = FallRule { pelvis_below: 1.5, ..FallRule::default() }.check().unwrap_err();
-        assert!(e.contains("fall.pelvis_below"), "{e}");
+        assert_eq!(e.field, "fall.pelvis_below");
+        assert!(e.to_string().starts_with("`fall.pelvis_below` is 1.5; it must be a share"), "{e}");
     }
 
     #[test]

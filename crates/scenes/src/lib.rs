@@ -24,7 +24,7 @@ pub use error::{Location, Result, SceneError};
 pub use fall::{Fall, FallCause, FallRule};
 pub use obs::{Feature, ObservationLayout};
 pub use param::Param;
-pub use record::{Annotation, RecordOptions, Recorder, Recording};
+pub use record::{Annotation, RecordOptions, Recorder, Recording, RecordingError};
 pub use scenario::{LowLevel, Prop, SEATED_FACING_DEG, Scenario, ScenarioFile, SitApproach, SitFall, SpotAround};
 pub use throw::{Throw, ThrowSpec};
 pub use world::{Contacts, World, WorldModel, step_parallel};

@@ -493,7 +493,7 @@ impl Recording {
 
     /// Writes the recording to `path` (a temporary file beside it, then a rename).
     pub fn save(&self, path: &Path) -> Result<()> {
-        self.check().map_err(|m| corrupt(path, m))?;
+        self.check().map_err(|m| corrupt(path, RecordingError::Inconsistent(m)))?;
         write_atomic(path, &self.to_bytes())
     }
 
@@ -501,37 +501,32 @@ impl Recording {
     /// refused with the file and what is wrong named.
     pub fn load(path: &Path) -> Result<Recording> {
         let bytes = std::fs::read(path).map_err(|source| SceneError::unreadable(path, source))?;
-        Self::from_bytes(&bytes).map_err(|m| corrupt(path, m))
+        Self::from_bytes(&bytes).map_err(|e| corrupt(path, e))
     }
 
     /// Parses a recording's bytes; the error says what is wrong (without the file name).
-    pub fn from_bytes(bytes: &[u8]) -> std::result::Result<Recording, String> {
-        let rest = bytes.strip_prefix(MAGIC.as_slice()).ok_or_else(|| {
-            "not a Repertoire recording (it does not start with REPREC 1; make one with `--record`)".to_string()
-        })?;
-        let (len, rest) = rest.split_at_checked(4).ok_or("cut short inside the header")?;
+    pub fn from_bytes(bytes: &[u8]) -> std::result::Result<Recording, RecordingError> {
+        let rest = bytes.strip_prefix(MAGIC.as_slice()).ok_or(RecordingError::NotARecording)?;
+        let (len, rest) = rest.split_at_checked(4).ok_or(RecordingError::HeaderCut)?;
         let len = u32::from_le_bytes([len[0], len[1], len[2], len[3]]) as usize;
-        let (header, data) = rest
-            .split_at_checked(len)
-            .ok_or_else(|| format!("cut short: the header says it is {len} bytes, {} bytes follow", rest.len()))?;
-        let header: Header = serde_json::from_slice(header)
-            .map_err(|e| format!("header line {} column {}: {e}", e.line(), e.column()))?;
+        let (header, data) =
+            rest.split_at_checked(len).ok_or(RecordingError::HeaderLength { said: len, found: rest.len() })?;
+        let header: Header = serde_json::from_slice(header).map_err(|e| RecordingError::Header {
+            line: e.line(),
+            column: e.column(),
+            message: e.to_string(),
+        })?;
         if !(1..=FORMAT).contains(&header.format) {
-            return Err(format!("recording format {} (this build reads formats 1 to {FORMAT})", header.format));
+            return Err(RecordingError::Format(header.format));
         }
-        let want = header.data_len().ok_or("the header's sizes overflow")?;
+        let want = header.data_len().ok_or(RecordingError::Overflow)?;
         if data.len() != want + 8 {
-            return Err(format!(
-                "cut short or padded: the header's {} frames need {} bytes after the header, found {}",
-                header.frames,
-                want + 8,
-                data.len()
-            ));
+            return Err(RecordingError::Length { frames: header.frames, want: want + 8, found: data.len() });
         }
         let body_end = bytes.len() - 8;
         let stored = u64::from_le_bytes(bytes[body_end..].try_into().expect("8 bytes"));
         if fnv1a(&bytes[..body_end]) != stored {
-            return Err("checksum mismatch: the file is corrupt (changed after it was written)".into());
+            return Err(RecordingError::Checksum);
         }
         let n = header.frames;
         let mut at = 0usize;
@@ -572,7 +567,7 @@ impl Recording {
             })
             .collect();
         let rec = Recording { header, time, qpos, poses, ghost, skill, phase, terms, contacts, fall };
-        rec.check()?;
+        rec.check().map_err(RecordingError::Inconsistent)?;
         Ok(rec)
     }
 
@@ -647,8 +642,60 @@ impl Recording {
     }
 }
 
-fn corrupt(path: &Path, message: String) -> SceneError {
-    SceneError::Recording { file: path.to_path_buf(), message }
+fn corrupt(path: &Path, problem: RecordingError) -> SceneError {
+    SceneError::Recording { file: path.to_path_buf(), problem }
+}
+
+/// What is wrong with the bytes of a recording ([`Recording::from_bytes`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum RecordingError {
+    /// It does not start as a recording does.
+    #[error("not a Repertoire recording (it does not start with REPREC 1; make one with `--record`)")]
+    NotARecording,
+    /// It ends before the header's length.
+    #[error("cut short inside the header")]
+    HeaderCut,
+    /// It ends inside the header.
+    #[error("cut short: the header says it is {said} bytes, {found} bytes follow")]
+    HeaderLength {
+        /// The header's length as stored.
+        said: usize,
+        /// The bytes after it.
+        found: usize,
+    },
+    /// The header is not the JSON a recording's header is.
+    #[error("header line {line} column {column}: {message}")]
+    Header {
+        /// Line in the header.
+        line: usize,
+        /// Column.
+        column: usize,
+        /// The parser's message.
+        message: String,
+    },
+    /// A format this build does not read (a newer one).
+    #[error("recording format {0} (this build reads formats 1 to {FORMAT})")]
+    Format(u32),
+    /// The header's sizes do not fit in memory.
+    #[error("the header's sizes overflow")]
+    Overflow,
+    /// The frames after the header are not as many bytes as the header says.
+    #[error("cut short or padded: the header's {frames} frames need {want} bytes after the header, found {found}")]
+    Length {
+        /// Frames in the header.
+        frames: usize,
+        /// Bytes they need (with the checksum).
+        want: usize,
+        /// Bytes there.
+        found: usize,
+    },
+    /// The checksum does not match: changed after it was written.
+    #[error("checksum mismatch: the file is corrupt (changed after it was written)")]
+    Checksum,
+    /// The header's references or the numbers are inconsistent (a body's parent after it, a
+    /// value not finite, ...).
+    #[error("{0}")]
+    Inconsistent(String),
 }
 
 /// Writes `bytes` to `path` via a temporary file beside it and a rename, so readers never see

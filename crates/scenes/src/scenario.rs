@@ -1144,8 +1144,8 @@ impl ScenarioFile {
             }
         }
 
-        if let Err(message) = s.fall.check() {
-            return Err(self.invalid(Some("fall"), message));
+        if let Err(e) = s.fall.check() {
+            return Err(self.invalid(Some("fall"), e.to_string()));
         }
 
         if let Some(c) = &s.curriculum {
@@ -1281,7 +1281,7 @@ impl ScenarioFile {
         {
             return Err(self.invalid(Some(&t.ball), format!("the thrown ball `{}` cannot start `on` a prop", t.ball)));
         }
-        t.throw.validate("the toss task").map_err(|m| self.invalid(Some("throw"), m))?;
+        t.throw.validate().map_err(|e| self.invalid(Some("throw"), format!("the toss task: {e}")))?;
         let c = t.catch_at;
         if !(c.height > 0.0 && c.height.is_finite() && c.forward.is_finite()) {
             return Err(self.invalid(

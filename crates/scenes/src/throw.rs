@@ -10,6 +10,7 @@ use crate::param::Param;
 use crate::world::World;
 use crate::{Result, SceneError};
 use rand::Rng;
+use repertoire_files::FieldError;
 use serde::{Deserialize, Serialize};
 
 /// Half of standard gravity as the paper writes it (m/s²).
@@ -61,24 +62,24 @@ pub struct Throw {
 }
 
 impl ThrowSpec {
-    /// Checks the ranges; `what` names the file and field for the message.
-    pub fn validate(&self, what: &str) -> std::result::Result<(), String> {
+    /// Checks the ranges; `Err` names the first bad field (`throw.v_x`).
+    pub fn validate(&self) -> std::result::Result<(), FieldError> {
         let positive = |p: Param, name: &str| {
             if p.min() > 0.0 && p.max().is_finite() {
                 Ok(())
             } else {
-                Err(format!("{what}: throw {name} must be positive and finite, got {p:?}"))
+                Err(FieldError::new(format!("throw.{name}"), format!("{p:?}"), "it must be positive and finite"))
             }
         };
         positive(self.distance_m, "distance_m")?;
         positive(self.v_x, "v_x")?;
         for (p, name) in [(self.lateral, "lateral"), (self.d_z, "d_z")] {
             if !(p.min().is_finite() && p.max().is_finite()) {
-                return Err(format!("{what}: throw {name} must be finite, got {p:?}"));
+                return Err(FieldError::new(format!("throw.{name}"), format!("{p:?}"), "it must be finite"));
             }
         }
         if !(self.spin.is_finite() && self.spin >= 0.0) {
-            return Err(format!("{what}: throw spin must be ≥ 0, got {}", self.spin));
+            return Err(FieldError::new("throw.spin", self.spin, "it must be ≥ 0"));
         }
         Ok(())
     }

@@ -101,6 +101,13 @@ fn damaged_files_are_refused_with_the_file_named() {
     let mut header = bytes.clone();
     header[13] = b'#';
     check("header.rec", &header, "header line 1 column");
+    // The bytes' problems are typed: a reader can tell a file that is not a recording from a
+    // damaged one or a newer format.
+    use repertoire_scenes::RecordingError;
+    assert_eq!(Recording::from_bytes(b"HIERARCHY"), Err(RecordingError::NotARecording));
+    assert_eq!(Recording::from_bytes(&flipped), Err(RecordingError::Checksum));
+    assert!(matches!(Recording::from_bytes(&bytes[..bytes.len() - 100]), Err(RecordingError::Length { .. })));
+    assert!(matches!(Recording::from_bytes(&header), Err(RecordingError::Header { line: 1, .. })));
     let missing = temp("missing.rec");
     let err = Recording::load(&missing).expect_err("missing").to_string();
     assert!(err.contains("missing.rec") && err.contains("cannot read"), "{err}");

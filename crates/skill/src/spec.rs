@@ -1,6 +1,7 @@
 //! The skill spec (RON): which clip, what the policy observes, the imitation and goal rewards,
 //! how episodes start and end, and the network and PPO settings.
 
+use repertoire_files::FieldError;
 use std::path::{Path, PathBuf};
 
 use std::collections::BTreeMap;
@@ -409,16 +410,20 @@ impl Init {
 
     /// Why these settings cannot start episodes, if they cannot (a spec's `init`, or the one
     /// `skill finetune` builds from its options).
-    pub fn check(&self) -> std::result::Result<(), String> {
+    pub fn check(&self) -> std::result::Result<(), FieldError> {
         let Init::Pools { fraction, from, speed } = self else { return Ok(()) };
         if !(0.0..=1.0).contains(fraction) {
-            return Err(format!("init Pools fraction must be in [0, 1], got {fraction}"));
+            return Err(FieldError::new("init.Pools.fraction", fraction, "it must be in [0, 1]"));
         }
         if !(speed.0.is_finite() && speed.1.is_finite() && 0.0 <= speed.0 && speed.0 <= speed.1) {
-            return Err(format!("init Pools speed must be a range (lo, hi) with 0 <= lo <= hi, got {speed:?}"));
+            return Err(FieldError::new(
+                "init.Pools.speed",
+                format!("{speed:?}"),
+                "it must be a range (lo, hi) with 0 ≤ lo ≤ hi",
+            ));
         }
         if from.is_empty() {
-            return Err("init Pools names no predecessor skill".into());
+            return Err(FieldError::new("init.Pools.from", "[]", "it must name a predecessor skill"));
         }
         Ok(())
     }
@@ -480,19 +485,23 @@ fn is_true(b: &bool) -> bool {
 
 impl Obstacle {
     /// Why these settings cannot place the prop, if they cannot.
-    pub fn check(&self) -> std::result::Result<(), String> {
+    pub fn check(&self) -> std::result::Result<(), FieldError> {
         let (lo, hi) = self.along;
         if !(0.0..=1.0).contains(&self.chance) {
-            return Err(format!("obstacle chance must be in [0, 1], got {}", self.chance));
+            return Err(FieldError::new("obstacle.chance", self.chance, "it must be in [0, 1]"));
         }
         if !(lo.is_finite() && hi.is_finite() && 0.0 < lo && lo <= hi && hi <= 2.0) {
-            return Err(format!("obstacle along ({lo}, {hi}) must satisfy 0 < low ≤ high ≤ 2"));
+            return Err(FieldError::new(
+                "obstacle.along",
+                format!("({lo}, {hi})"),
+                "it must satisfy 0 < low ≤ high ≤ 2",
+            ));
         }
         if !(self.offset_m.is_finite() && self.offset_m >= 0.0) {
-            return Err(format!("obstacle offset_m must be finite and ≥ 0, got {}", self.offset_m));
+            return Err(FieldError::new("obstacle.offset_m", self.offset_m, "it must be finite and ≥ 0"));
         }
         if !(self.clearance_m.is_finite() && self.clearance_m > 0.0 && self.clearance_m < 4.0) {
-            return Err(format!("obstacle clearance_m must be in (0, 4) m, got {}", self.clearance_m));
+            return Err(FieldError::new("obstacle.clearance_m", self.clearance_m, "it must be in (0, 4) m"));
         }
         Ok(())
     }
@@ -605,8 +614,8 @@ impl SpecFile {
         if spec.clip.looping && spec.clip.lead_s > 0.0 {
             return bad("clip cannot both loop and lead in with its first frame (`looping` and `lead_s`)".into());
         }
-        if let Err(m) = spec.init.check() {
-            return bad(m);
+        if let Err(e) = spec.init.check() {
+            return bad(e.to_string());
         }
         for (name, v) in &spec.clip.pose_deg {
             if !v.is_finite() {
@@ -625,8 +634,8 @@ impl SpecFile {
             }
             Goal::PutDown { release_s, scale, .. } => &[("release_s", *release_s), ("scale", *scale)],
             Goal::Catch { catch_s, throw, scale, .. } => {
-                if let Err(m) = throw.validate(&format!("{} goal Catch", path.display())) {
-                    return Err(SkillError::Invalid(m));
+                if let Err(e) = throw.validate() {
+                    return Err(SkillError::Invalid(format!("{}: goal Catch: {e}", path.display())));
                 }
                 &[("catch_s", *catch_s), ("scale", *scale)]
             }
@@ -676,8 +685,8 @@ impl SpecFile {
                     o.prop
                 ));
             }
-            if let Err(m) = o.check() {
-                return bad(m);
+            if let Err(e) = o.check() {
+                return bad(e.to_string());
             }
         }
         Ok(SpecFile { spec, path: path.to_path_buf() })
