@@ -499,9 +499,24 @@ fn eval_cmd(
             Err(e) => println!("not evaluated from predecessors' end poses: {e}"),
         }
     }
+    print_eval_rows(&setup, &rows, &predecessors);
+    if let Some((_, pool_size)) = pool {
+        let step = ends.len().div_ceil(pool_size.max(1)).max(1);
+        let kept: Vec<_> = ends.into_iter().step_by(step).collect();
+        let pool = pool_of(&setup, kept);
+        let path = library::skill_dir(library, &name).join("end_poses.ron");
+        pool.save(&path)?;
+        println!("{} successful end poses written to {}", pool.states.len(), path.display());
+    }
+    Ok(())
+}
+
+/// `skill eval`'s table, motion figures, and the per-start lines (targets reached, obstacle
+/// touches).
+fn print_eval_rows(setup: &SkillSetup, rows: &[repertoire_skill::eval::EvalReport], predecessors: &[String]) {
     println!("| skill | start | trials | success | falls | normalised length | normalised return |");
     println!("|---|---|---:|---:|---:|---:|---:|");
-    for r in &rows {
+    for r in rows {
         let start = match r.start {
             StartFrom::ClipStart => "clip start".to_string(),
             StartFrom::Predecessors => format!("end poses of {}", predecessors.join(", ")),
@@ -516,8 +531,8 @@ fn eval_cmd(
             r.normalized_return
         );
     }
-    print_motion(&setup, &rows, &predecessors);
-    for r in &rows {
+    print_motion(setup, rows, predecessors);
+    for r in rows {
         let start = if r.start == StartFrom::ClipStart { "the clip start" } else { "the predecessors' end poses" };
         if let Some(targets) = r.targets_per_trial {
             println!(
@@ -532,15 +547,6 @@ fn eval_cmd(
             );
         }
     }
-    if let Some((_, pool_size)) = pool {
-        let step = ends.len().div_ceil(pool_size.max(1)).max(1);
-        let kept: Vec<_> = ends.into_iter().step_by(step).collect();
-        let pool = pool_of(&setup, kept);
-        let path = library::skill_dir(library, &name).join("end_poses.ron");
-        pool.save(&path)?;
-        println!("{} successful end poses written to {}", pool.states.len(), path.display());
-    }
-    Ok(())
 }
 
 fn play_cmd(

@@ -506,24 +506,7 @@ fn distill_cmd(
         },
         seed,
         then_train: (iterations > 0)
-            .then(|| {
-                let args = RunArgs {
-                    run_dir,
-                    iterations: Some(iterations),
-                    envs: None,
-                    seed: Some(seed),
-                    ent_coef: None,
-                    resume: None,
-                    checkpoint_every: CHECKPOINT_EVERY,
-                    no_curriculum,
-                    warm_start: None,
-                    replace: Vec::new(),
-                    learning_rate,
-                    critic_warmup: None,
-                };
-                let run = TrainRun { args, command: command.clone() };
-                run.options(default_ppo(), out.clone(), "meta-distill")
-            })
+            .then(|| distill_training(iterations, seed, learning_rate, no_curriculum, run_dir, &out, &command))
             .transpose()?,
         command,
     };
@@ -531,6 +514,34 @@ fn distill_cmd(
     let (_, f) = distill(setup, &opts)?;
     print_distilled(&f, &out, trained);
     Ok(())
+}
+
+/// The PPO run `meta distill --iterations N` trains the distilled controller on with.
+fn distill_training(
+    iterations: usize,
+    seed: u64,
+    learning_rate: Option<f64>,
+    no_curriculum: bool,
+    run_dir: Option<PathBuf>,
+    out: &Path,
+    command: &str,
+) -> Result<MetaTrainOptions> {
+    let args = RunArgs {
+        run_dir,
+        iterations: Some(iterations),
+        envs: None,
+        seed: Some(seed),
+        ent_coef: None,
+        resume: None,
+        checkpoint_every: CHECKPOINT_EVERY,
+        no_curriculum,
+        warm_start: None,
+        replace: Vec::new(),
+        learning_rate,
+        critic_warmup: None,
+    };
+    let run = TrainRun { args, command: command.to_string() };
+    run.options(default_ppo(), out.to_path_buf(), "meta-distill")
 }
 
 /// What `meta distill` ends with: the teacher's figures and the fit's, and where it went.
