@@ -3,8 +3,8 @@
 //! timed by the planner's copy, the readiness-gated controller, the lookahead, and the latent
 //! high level over the latent low level), and the per-episode [`Decider`] it starts. A
 //! controller plays its episodes in an [`Arena`]: the skills' [`MetaSetup`] (a decision is a
-//! skill and its target, twice a second) or the latent model's [`LatentSetup`] (a decision is
-//! a latent `z`). Evaluation and worst-episode recordings take a `&dyn Controller<A>` for any
+//! skill and its target, twice a second) or the latent model's
+//! [`LatentSetup`](crate::latent::LatentSetup) (a decision is a latent `z`). Evaluation and worst-episode recordings take a `&dyn Controller<A>` for any
 //! arena; deliveries, distillation and the object tasks take the skills' (`&dyn Controller`).
 
 use std::sync::{Arc, RwLock};
@@ -17,12 +17,11 @@ use repertoire_scenes::{Recording, WorldModel};
 
 use crate::env::{MetaEnv, MetaSetup, terminal_skills};
 use crate::error::Result;
-use crate::eval::Trial;
 use crate::handover::readiness::{Gate, Readiness, checked_act, terminal_choice};
-use crate::latent::{LatentMetaEnv, LatentSetup};
 use crate::search::lookahead::{Lookahead, LookaheadConfig};
 use crate::search::planner::{Planner, PlannerConfig};
 use crate::task::TaskSpec;
+use crate::trial::Trial;
 
 /// Where a controller's episodes are played: the scene, the task and the low level its
 /// decisions drive, and the environment of one episode.
@@ -115,54 +114,6 @@ impl Arena for MetaSetup {
     }
 
     fn recording(env: &mut MetaEnv) -> Option<Recording> {
-        env.recording()
-    }
-}
-
-impl Arena for LatentSetup {
-    type Env = LatentMetaEnv;
-
-    fn env(self: &Arc<Self>) -> Result<LatentMetaEnv> {
-        LatentMetaEnv::new(self)
-    }
-
-    fn task(&self) -> &TaskSpec {
-        &self.task
-    }
-
-    fn zones(&self) -> &RwLock<Vec<String>> {
-        &self.zones
-    }
-
-    fn model(&self) -> &WorldModel {
-        &self.model
-    }
-
-    fn decider(&self) -> &'static str {
-        "latent high level"
-    }
-
-    fn options(&self) -> Vec<String> {
-        Vec::new()
-    }
-
-    fn trial(&self, env: &LatentMetaEnv, index: usize, zone: &str, terms: &[f32]) -> Trial {
-        let frame: PropPlacement = env.world().placements()[self.task.frame_prop()];
-        Trial::from_episode(index, zone, env.task().start, frame, terms, Vec::new())
-    }
-
-    fn record(env: &mut LatentMetaEnv, title: String) {
-        env.record_episodes(title);
-    }
-
-    fn skills<'a>(
-        self: &'a Arc<Self>,
-        _controller: &'a dyn Controller<Self>,
-    ) -> Option<(&'a Arc<MetaSetup>, &'a dyn Controller<MetaSetup>)> {
-        None
-    }
-
-    fn recording(env: &mut LatentMetaEnv) -> Option<Recording> {
         env.recording()
     }
 }

@@ -37,10 +37,13 @@ use repertoire_skill::library;
 use repertoire_skill::pool::Pool;
 use serde::{Deserialize, Serialize};
 
-use crate::controller::{Controller, Decider};
+use crate::controller::{Arena, Controller, Decider};
+use crate::env::MetaSetup;
 use crate::error::{MetaError, Result};
 use crate::graph::SkillGraph;
 use crate::task::{EpisodeOverride, TaskSpec, TaskState};
+use crate::trial::Trial;
+use repertoire_scenes::world::PropPlacement;
 
 /// The scene, the task and the frozen latent model, shared by every latent meta environment.
 pub struct LatentSetup {
@@ -555,6 +558,56 @@ pub fn load(dir: &Path, setup: &LatentSetup) -> Result<(LatentMetaManifest, Acti
         )));
     }
     Ok((manifest, policy))
+}
+
+/// The latent low level as the arena of a controller: episodes of the scenario's task with a
+/// `z` for a decision.
+impl Arena for LatentSetup {
+    type Env = LatentMetaEnv;
+
+    fn env(self: &Arc<Self>) -> Result<LatentMetaEnv> {
+        LatentMetaEnv::new(self)
+    }
+
+    fn task(&self) -> &TaskSpec {
+        &self.task
+    }
+
+    fn zones(&self) -> &RwLock<Vec<String>> {
+        &self.zones
+    }
+
+    fn model(&self) -> &WorldModel {
+        &self.model
+    }
+
+    fn decider(&self) -> &'static str {
+        "latent high level"
+    }
+
+    fn options(&self) -> Vec<String> {
+        Vec::new()
+    }
+
+    fn trial(&self, env: &LatentMetaEnv, index: usize, zone: &str, terms: &[f32]) -> Trial {
+        let frame: PropPlacement = env.world().placements()[self.task.frame_prop()];
+        Trial::from_episode(index, zone, env.task().start, frame, terms, Vec::new())
+    }
+
+    fn record(env: &mut LatentMetaEnv, title: String) {
+        env.record_episodes(title);
+    }
+
+    fn skills<'a>(
+        self: &'a Arc<Self>,
+        _controller: &'a dyn Controller<Self>,
+    ) -> Option<(&'a Arc<MetaSetup>, &'a dyn Controller<MetaSetup>)> {
+        None
+    }
+
+    fn recording(env: &mut LatentMetaEnv) -> Option<Recording> {
+        env.recording()
+    }
 }
 
 /// The trained latent high level as a [`Controller`] over the latent low level: each decision

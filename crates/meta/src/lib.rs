@@ -17,6 +17,7 @@ pub mod search;
 pub mod task;
 pub mod tasks;
 pub mod train;
+pub mod trial;
 
 pub use controller::{Arena, Controller, Decider};
 pub use env::{MetaEnv, MetaSetup};
