@@ -69,7 +69,7 @@ fn clip_check_refuses_unusable_clips_with_a_reason() {
     assert!(stderr.contains("nan.bvh") && stderr.contains("frame 1"), "{stderr}");
 
     // A map naming a joint the file lacks.
-    let map = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/skills/clip/maps/cmu-subject16.bvh.ron"))
+    let map = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/crates/clip/maps/cmu-subject16.bvh.ron"))
         .unwrap()
         .replace("\"lfoot\"", "\"lankle\"")
         .replace("\"rhand\"", "\"rwrist\"");
@@ -130,7 +130,7 @@ fn a_map_that_fits_the_skeleton_poorly_is_warned_about_with_the_maps_that_would_
     // it is accepted, but the hands cannot reach where the source puts them.
     let dir = temp_dir("clip-poor-fit");
     let shipped =
-        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/skills/clip/maps/cmu-subject16.bvh.ron"))
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/crates/clip/maps/cmu-subject16.bvh.ron"))
             .unwrap();
     let mut map = shipped.replace("name: \"cmu-subject16-bvh\"", "name: \"mine\"");
     for (a, b) in [("lhand", "rhand"), ("lradius", "rradius")] {

@@ -210,7 +210,7 @@ pub struct RetargetMap {
 pub struct LoadedMap {
     /// The map.
     pub map: RetargetMap,
-    /// Where it came from (`<built-in>/skills/clip/maps/...` for shipped maps).
+    /// Where it came from (`<built-in>/crates/clip/maps/...` for shipped maps).
     pub path: PathBuf,
     /// The RON text.
     pub text: String,
@@ -313,7 +313,7 @@ pub const SHIPPED: [(&str, &str); 7] = [
 pub fn shipped() -> Result<Vec<LoadedMap>> {
     SHIPPED
         .iter()
-        .map(|(name, text)| LoadedMap::parse(&Path::new("<built-in>/skills/clip/maps").join(name), text.to_string()))
+        .map(|(name, text)| LoadedMap::parse(&Path::new("<built-in>/crates/clip/maps").join(name), text.to_string()))
         .collect()
 }
 

@@ -185,8 +185,7 @@ pub struct MlpInference {
 impl MlpInference {
     /// Builds from `(in, out, W [in × out] row-major, b [out])` per layer, input first; `Err`
     /// says which layer does not fit.
-    pub fn from_layers(layers: Vec<(usize, usize, Vec<f32>, Vec<f32>)>) -> Result<Self, crate::acting::ShapeError> {
-        use crate::acting::ShapeError;
+    pub fn from_layers(layers: Vec<(usize, usize, Vec<f32>, Vec<f32>)>) -> Result<Self, ShapeError> {
         if layers.is_empty() {
             return Err(ShapeError::NoLayers);
         }
@@ -346,4 +345,103 @@ mod tests {
             assert!((a - b).abs() < 1e-5, "{a} vs {b}");
         }
     }
+}
+
+/// Why saved networks do not fit a learner, or an edit of them cannot be made
+/// ([`crate::acting::ActingPolicy::load_into`], [`crate::acting::ActingPolicy::widened`],
+/// [`crate::acting::ActingHybrid::load_into`], ...).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum ShapeError {
+    /// Another number of layers than the learner's configuration.
+    #[error("the {what} network has {saved} layers, the configuration {config}")]
+    Layers {
+        /// Which network (`policy`, `value`, `option`, `continuous`).
+        what: &'static str,
+        /// Layers saved.
+        saved: usize,
+        /// Layers configured.
+        config: usize,
+    },
+    /// A layer of another shape (inputs × outputs).
+    #[error("{what} layer {layer} is {}×{} in the file, {}×{} in the configuration", saved.0, saved.1, config.0, config.1)]
+    Layer {
+        /// Which network.
+        what: &'static str,
+        /// Its index, input first.
+        layer: usize,
+        /// Saved inputs × outputs.
+        saved: (usize, usize),
+        /// Configured inputs × outputs.
+        config: (usize, usize),
+    },
+    /// Another width of something both have (observations, actions, continuous values).
+    #[error("the saved {what} is {saved} wide, the learner's {learner}")]
+    Width {
+        /// What (`observation`, `action`, `value network's input`).
+        what: &'static str,
+        /// Saved width.
+        saved: usize,
+        /// The learner's.
+        learner: usize,
+    },
+    /// Inputs inserted past the network's last.
+    #[error("cannot insert inputs at {at}: the network takes {inputs}")]
+    InsertPast {
+        /// Where.
+        at: usize,
+        /// How many it takes.
+        inputs: usize,
+    },
+    /// Widening to fewer inputs than it takes.
+    #[error("cannot narrow a policy from {have} to {want} inputs")]
+    Narrow {
+        /// Inputs now.
+        have: usize,
+        /// Inputs asked for.
+        want: usize,
+    },
+    /// A controller's head into a learner whose environment has no hybrid actions.
+    #[error("the learner's environment has no hybrid actions")]
+    NotHybrid,
+    /// A controller's options read the continuous part otherwise than the learner's.
+    #[error("the controller's options read the continuous part as {saved:?}, the learner's as {learner:?}")]
+    Options {
+        /// Per option, whether it reads the continuous part (saved).
+        saved: Vec<bool>,
+        /// The learner's.
+        learner: Vec<bool>,
+    },
+    /// Weights and biases that do not fill a layer ([`crate::nn::MlpInference::from_layers`]).
+    #[error("layer {layer}: {inputs}×{outputs} needs {} weights and {outputs} biases, found {weights} and {biases}", inputs * outputs)]
+    Weights {
+        /// The layer.
+        layer: usize,
+        /// Its inputs.
+        inputs: usize,
+        /// Its outputs.
+        outputs: usize,
+        /// Weights given.
+        weights: usize,
+        /// Biases given.
+        biases: usize,
+    },
+    /// No layers at all.
+    #[error("an MLP needs at least one layer")]
+    NoLayers,
+    /// A layer taking another number of inputs than the layer before gives.
+    #[error("layer {layer} takes {inputs} inputs but the layer before gives {before}")]
+    Chain {
+        /// The layer.
+        layer: usize,
+        /// Its inputs.
+        inputs: usize,
+        /// The outputs of the layer before.
+        before: usize,
+    },
+    /// A NaN or infinite weight or bias.
+    #[error("layer {layer} holds a NaN or infinite weight")]
+    NotFinite {
+        /// The layer.
+        layer: usize,
+    },
 }

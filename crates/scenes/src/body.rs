@@ -109,6 +109,12 @@ pub struct BodyDef {
     pub map_text: String,
 }
 
+/// Prefix of the actuators Repertoire adds to a scene (they drive no body joint; the scene's
+/// composition adds them, [`crate::compose`]).
+pub const ADDED_ACTUATOR_PREFIX: &str = "repertoire/";
+/// Names of the left and right hands' grip actuators.
+pub const GRIP_ACTUATORS: [&str; 2] = ["repertoire/grip/left", "repertoire/grip/right"];
+
 const HUMANOID_XML: &str = include_str!("../assets/humanoid.xml");
 const HUMANOID_MAP: &str = include_str!("../assets/humanoid.map.ron");
 
@@ -507,7 +513,7 @@ impl BodyIndex {
         }
         for (a, &trn) in trn_type.iter().enumerate() {
             let name = model.id_to_name(MjtObjBase::mjOBJ_ACTUATOR, a).unwrap_or("(unnamed)");
-            if name.starts_with(crate::compose::ADDED_ACTUATOR_PREFIX) && trn != MjtTrn::mjTRN_JOINT {
+            if name.starts_with(ADDED_ACTUATOR_PREFIX) && trn != MjtTrn::mjTRN_JOINT {
                 continue; // added by the scene (the grip), not the body's
             }
             if !joints.iter().any(|j| j.actuator == a) {
@@ -549,10 +555,7 @@ impl BodyIndex {
             foot_of,
             foot_touch,
             hand_touch,
-            grip: crate::compose::GRIP_ACTUATORS
-                .iter()
-                .filter_map(|n| model.name_to_id(MjtObjBase::mjOBJ_ACTUATOR, n))
-                .collect(),
+            grip: GRIP_ACTUATORS.iter().filter_map(|n| model.name_to_id(MjtObjBase::mjOBJ_ACTUATOR, n)).collect(),
         })
     }
 

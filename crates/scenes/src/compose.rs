@@ -37,10 +37,7 @@ const GRIP_CONTACT: &str =
 /// most 7 kg (69 N) under friction 2 is several times what holding it needs, and well below
 /// what the arms' actuators can pull apart.
 pub const GRIP_FORCE_N: f64 = 120.0;
-/// Prefix of the actuators Repertoire adds to a scene (they drive no body joint).
-pub const ADDED_ACTUATOR_PREFIX: &str = "repertoire/";
-/// Names of the left and right hands' grip actuators.
-pub const GRIP_ACTUATORS: [&str; 2] = ["repertoire/grip/left", "repertoire/grip/right"];
+pub use crate::body::{ADDED_ACTUATOR_PREFIX, GRIP_ACTUATORS};
 
 /// Number of wall segments of a bucket.
 pub const BUCKET_WALLS: usize = 12;

@@ -56,7 +56,7 @@ pub enum SceneError {
         file: PathBuf,
         /// What is wrong.
         #[source]
-        problem: crate::record::RecordingError,
+        problem: RecordingError,
     },
     /// A runtime request that does not fit the world (wrong action length, unknown prop, ...).
     #[error("{0}")]
@@ -77,3 +77,60 @@ impl SceneError {
 
 /// Result alias for this crate.
 pub type Result<T, E = SceneError> = std::result::Result<T, E>;
+
+/// What is wrong with the bytes of a recording ([`crate::Recording::from_bytes`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum RecordingError {
+    /// It does not start as a recording does.
+    #[error("not a Repertoire recording (it does not start with REPREC 1; make one with `--record`)")]
+    NotARecording,
+    /// It ends before the header's length.
+    #[error("cut short inside the header")]
+    HeaderCut,
+    /// It ends inside the header.
+    #[error("cut short: the header says it is {said} bytes, {found} bytes follow")]
+    HeaderLength {
+        /// The header's length as stored.
+        said: usize,
+        /// The bytes after it.
+        found: usize,
+    },
+    /// The header is not the JSON a recording's header is.
+    #[error("header line {line} column {column}: {message}")]
+    Header {
+        /// Line in the header.
+        line: usize,
+        /// Column.
+        column: usize,
+        /// The parser's message.
+        message: String,
+    },
+    /// A format this build does not read (a newer one).
+    #[error("recording format {found} (this build reads formats 1 to {newest})")]
+    Format {
+        /// The file's format.
+        found: u32,
+        /// The newest this build reads.
+        newest: u32,
+    },
+    /// The header's sizes do not fit in memory.
+    #[error("the header's sizes overflow")]
+    Overflow,
+    /// The frames after the header are not as many bytes as the header says.
+    #[error("cut short or padded: the header's {frames} frames need {want} bytes after the header, found {found}")]
+    Length {
+        /// Frames in the header.
+        frames: usize,
+        /// Bytes they need (with the checksum).
+        want: usize,
+        /// Bytes there.
+        found: usize,
+    },
+    /// The checksum does not match: changed after it was written.
+    #[error("checksum mismatch: the file is corrupt (changed after it was written)")]
+    Checksum,
+    /// The header's references or the numbers are inconsistent (a body's parent after it, a
+    /// value not finite, ...).
+    #[error("{0}")]
+    Inconsistent(String),
+}

@@ -25,9 +25,10 @@ use std::sync::Arc;
 use mujoco_rs::prelude::*;
 use serde::{Deserialize, Serialize};
 
+pub use crate::error::RecordingError;
 use crate::error::{Result, SceneError};
-use crate::fall::FallCause;
-use crate::world::{Contacts, World, WorldModel};
+use crate::fall::{Fall, FallCause};
+use crate::world::{Contacts, PropMount, World, WorldModel};
 
 /// The file's first bytes.
 pub const MAGIC: &[u8; 8] = b"REPREC\x01\n";
@@ -517,7 +518,7 @@ impl Recording {
             message: e.to_string(),
         })?;
         if !(1..=FORMAT).contains(&header.format) {
-            return Err(RecordingError::Format(header.format));
+            return Err(RecordingError::Format { found: header.format, newest: FORMAT });
         }
         let want = header.data_len().ok_or(RecordingError::Overflow)?;
         if data.len() != want + 8 {
@@ -646,60 +647,70 @@ fn corrupt(path: &Path, problem: RecordingError) -> SceneError {
     SceneError::Recording { file: path.to_path_buf(), problem }
 }
 
-/// What is wrong with the bytes of a recording ([`Recording::from_bytes`]).
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum RecordingError {
-    /// It does not start as a recording does.
-    #[error("not a Repertoire recording (it does not start with REPREC 1; make one with `--record`)")]
-    NotARecording,
-    /// It ends before the header's length.
-    #[error("cut short inside the header")]
-    HeaderCut,
-    /// It ends inside the header.
-    #[error("cut short: the header says it is {said} bytes, {found} bytes follow")]
-    HeaderLength {
-        /// The header's length as stored.
-        said: usize,
-        /// The bytes after it.
-        found: usize,
-    },
-    /// The header is not the JSON a recording's header is.
-    #[error("header line {line} column {column}: {message}")]
-    Header {
-        /// Line in the header.
-        line: usize,
-        /// Column.
-        column: usize,
-        /// The parser's message.
-        message: String,
-    },
-    /// A format this build does not read (a newer one).
-    #[error("recording format {0} (this build reads formats 1 to {FORMAT})")]
-    Format(u32),
-    /// The header's sizes do not fit in memory.
-    #[error("the header's sizes overflow")]
-    Overflow,
-    /// The frames after the header are not as many bytes as the header says.
-    #[error("cut short or padded: the header's {frames} frames need {want} bytes after the header, found {found}")]
-    Length {
-        /// Frames in the header.
-        frames: usize,
-        /// Bytes they need (with the checksum).
-        want: usize,
-        /// Bytes there.
-        found: usize,
-    },
-    /// The checksum does not match: changed after it was written.
-    #[error("checksum mismatch: the file is corrupt (changed after it was written)")]
-    Checksum,
-    /// The header's references or the numbers are inconsistent (a body's parent after it, a
-    /// value not finite, ...).
-    #[error("{0}")]
-    Inconsistent(String),
-}
-
 /// Writes `bytes` to `path` via a temporary file beside it and a rename, so readers never see
 /// half a file.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     repertoire_files::write_atomic(path, bytes).map_err(|e| SceneError::Write { file: e.path, source: e.source })
+}
+
+/// Judging a recording again needs the world of its scene; it lives here, beside recordings,
+/// so that the world does not depend on them.
+impl World {
+    /// The fall test run again over a recording of this scene, frame by frame from its recorded
+    /// qpos and fixed props' poses (velocities zero, so only what poses and contacts show):
+    /// per frame, the fall once one counted. Recordings made before the shared fall test, or
+    /// under another rule, are judged by this scene's. `Err` when the recording is of another
+    /// scene (its qpos width or bodies differ).
+    pub fn judge(&mut self, rec: &Recording) -> Result<Vec<Option<Fall>>> {
+        let h = &rec.header;
+        let model = self.shared.mj_model();
+        let nbody = model.ffi().nbody as usize;
+        let names: Vec<&str> =
+            (1..nbody).map(|b| model.id_to_name(MjtObjBase::mjOBJ_BODY, b).unwrap_or_default()).collect();
+        if h.nq != self.data.qpos().len() || h.bodies.len() != names.len() {
+            return Err(SceneError::Usage(format!(
+                "the recording `{}` is of a scene with qpos width {} and {} bodies; scenario `{}` has {} and {}",
+                h.title,
+                h.nq,
+                h.bodies.len(),
+                self.shared.scenario.scenario.name,
+                self.data.qpos().len(),
+                names.len()
+            )));
+        }
+        if let Some((b, (want, got))) =
+            names.iter().zip(&h.bodies).map(|(n, r)| (*n, r.name.as_str())).enumerate().find(|(_, (n, r))| n != r)
+        {
+            return Err(SceneError::Usage(format!(
+                "the recording's body {b} is `{got}`; scenario `{}` has `{want}` there",
+                self.shared.scenario.scenario.name
+            )));
+        }
+        let fixed: Vec<(usize, usize)> = self
+            .shared
+            .props
+            .iter()
+            .filter_map(|p| match p.mount {
+                PropMount::Fixed { mocap } => Some((mocap, p.body)),
+                PropMount::Free { .. } => None,
+            })
+            .collect();
+        let dt = rec.dt();
+        self.fall.reset();
+        let mut out = Vec::with_capacity(rec.frames());
+        for f in 0..rec.frames() {
+            self.data.qpos_mut().copy_from_slice(rec.qpos_at(f));
+            self.data.qvel_mut().fill(0.0);
+            self.data.set_time(rec.time[f]);
+            for &(mocap, body) in &fixed {
+                let (pos, quat) = rec.pose(f, body - 1);
+                self.data.mocap_pos_mut()[mocap] = pos;
+                self.data.mocap_quat_mut()[mocap] = quat;
+            }
+            self.forward();
+            self.check_fall(if f == 0 { 0.0 } else { dt });
+            out.push(self.fall.fall());
+        }
+        Ok(out)
+    }
 }

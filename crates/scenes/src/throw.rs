@@ -7,8 +7,6 @@
 //! `d_z` over the flight and reaches the catch point's height after `t_hit` seconds.
 
 use crate::param::Param;
-use crate::world::World;
-use crate::{Result, SceneError};
 use rand::Rng;
 use repertoire_files::FieldError;
 use serde::{Deserialize, Serialize};
@@ -116,15 +114,5 @@ impl ThrowSpec {
         let mut spin = || if self.spin > 0.0 { rng.random_range(-self.spin..=self.spin) } else { 0.0 };
         let angvel = [spin(), spin(), spin()];
         Throw { pos, linvel, angvel, t_hit, v_x, lateral }
-    }
-}
-
-impl Throw {
-    /// Puts free prop `ball` in flight on this throw.
-    pub fn launch(&self, world: &mut World, ball: usize) -> Result<()> {
-        if !(self.t_hit.is_finite() && self.t_hit > 0.0) {
-            return Err(SceneError::Usage(format!("throw: flight time {} is not positive", self.t_hit)));
-        }
-        world.set_free_prop(ball, self.pos, [1.0, 0.0, 0.0, 0.0], self.linvel, self.angvel)
     }
 }

@@ -11,7 +11,6 @@ use crate::compose::{scene_mjcf, yaw_quat};
 use crate::error::{Result, SceneError};
 use crate::fall::{FALL_STATE_LEN, Fall, FallMonitor, FallRule, FallSigns, Part, PropUse};
 use crate::math::{Frame, wrap_angle};
-use crate::record::Recording;
 use crate::scenario::{BodySource, Facing, Prop, ScenarioFile, Zone};
 use mujoco_rs::prelude::*;
 use rand::Rng;
@@ -325,8 +324,8 @@ impl WorldModel {
 
 /// One simulated world: the character, the props and the physics state.
 pub struct World {
-    shared: Arc<WorldModel>,
-    data: MjData<Arc<MjModel>>,
+    pub(crate) shared: Arc<WorldModel>,
+    pub(crate) data: MjData<Arc<MjModel>>,
     placements: Vec<PropPlacement>,
     owns_model: bool,
     /// Whether the last change was a physics step rather than a state set by hand: MuJoCo's
@@ -340,7 +339,7 @@ pub struct World {
     /// controls, kept to write again after MuJoCo's reset zeroes them.
     grip: f64,
     /// The fall test's running state ([`crate::fall`]).
-    fall: FallMonitor,
+    pub(crate) fall: FallMonitor,
 }
 
 /// What of MuJoCo's state [`World`] keeps from before a step's last substep: time, qpos, qvel,
@@ -998,7 +997,7 @@ impl World {
     }
 
     /// Runs the fall test on what the world shows now, `dt` seconds after its last check.
-    fn check_fall(&mut self, dt: f64) {
+    pub(crate) fn check_fall(&mut self, dt: f64) {
         let signs = self.fall_signs();
         let time = self.data.time();
         self.fall.update(&self.shared.scenario.scenario.fall, &signs, self.shared.pelvis_min, dt, time);
@@ -1042,64 +1041,6 @@ impl World {
         signs
     }
 
-    /// The fall test run again over a recording of this scene, frame by frame from its recorded
-    /// qpos and fixed props' poses (velocities zero, so only what poses and contacts show):
-    /// per frame, the fall once one counted. Recordings made before the shared fall test, or
-    /// under another rule, are judged by this scene's. `Err` when the recording is of another
-    /// scene (its qpos width or bodies differ).
-    pub fn judge(&mut self, rec: &Recording) -> Result<Vec<Option<Fall>>> {
-        let h = &rec.header;
-        let model = &self.shared.model;
-        let nbody = model.ffi().nbody as usize;
-        let names: Vec<&str> =
-            (1..nbody).map(|b| model.id_to_name(MjtObjBase::mjOBJ_BODY, b).unwrap_or_default()).collect();
-        if h.nq != self.data.qpos().len() || h.bodies.len() != names.len() {
-            return Err(SceneError::Usage(format!(
-                "the recording `{}` is of a scene with qpos width {} and {} bodies; scenario `{}` has {} and {}",
-                h.title,
-                h.nq,
-                h.bodies.len(),
-                self.shared.scenario.scenario.name,
-                self.data.qpos().len(),
-                names.len()
-            )));
-        }
-        if let Some((b, (want, got))) =
-            names.iter().zip(&h.bodies).map(|(n, r)| (*n, r.name.as_str())).enumerate().find(|(_, (n, r))| n != r)
-        {
-            return Err(SceneError::Usage(format!(
-                "the recording's body {b} is `{got}`; scenario `{}` has `{want}` there",
-                self.shared.scenario.scenario.name
-            )));
-        }
-        let fixed: Vec<(usize, usize)> = self
-            .shared
-            .props
-            .iter()
-            .filter_map(|p| match p.mount {
-                PropMount::Fixed { mocap } => Some((mocap, p.body)),
-                PropMount::Free { .. } => None,
-            })
-            .collect();
-        let dt = rec.dt();
-        self.fall.reset();
-        let mut out = Vec::with_capacity(rec.frames());
-        for f in 0..rec.frames() {
-            self.data.qpos_mut().copy_from_slice(rec.qpos_at(f));
-            self.data.qvel_mut().fill(0.0);
-            self.data.set_time(rec.time[f]);
-            for &(mocap, body) in &fixed {
-                let (pos, quat) = rec.pose(f, body - 1);
-                self.data.mocap_pos_mut()[mocap] = pos;
-                self.data.mocap_quat_mut()[mocap] = quat;
-            }
-            self.forward();
-            self.check_fall(if f == 0 { 0.0 } else { dt });
-            out.push(self.fall.fall());
-        }
-        Ok(out)
-    }
-
     /// The fall, once the fall test counted one this episode ([`crate::fall`]).
     pub fn fall(&self) -> Option<Fall> {
         self.fall.fall()
@@ -1107,7 +1048,7 @@ impl World {
 
     /// Recomputes MuJoCo's derived quantities for the present state (after a state was set by
     /// hand).
-    fn forward(&mut self) {
+    pub(crate) fn forward(&mut self) {
         self.data.forward();
         self.stepped = false;
     }
@@ -1422,4 +1363,14 @@ fn rotate_inverse(q: [f64; 4], v: [f64; 3]) -> [f64; 3] {
         v[1] + w * t[1] + (z * t[0] - x * t[2]),
         v[2] + w * t[2] + (x * t[1] - y * t[0]),
     ]
+}
+
+impl crate::throw::Throw {
+    /// Puts free prop `ball` in flight on this throw.
+    pub fn launch(&self, world: &mut World, ball: usize) -> Result<()> {
+        if !(self.t_hit.is_finite() && self.t_hit > 0.0) {
+            return Err(SceneError::Usage(format!("throw: flight time {} is not positive", self.t_hit)));
+        }
+        world.set_free_prop(ball, self.pos, [1.0, 0.0, 0.0, 0.0], self.linvel, self.angvel)
+    }
 }

@@ -96,7 +96,11 @@ fn malformed_task_sections_are_located_and_explained() {
         ),
         (r#"Toss(ball: "crate", bucket: "bucket")"#, "`crate` is a box, not a ball", 6),
         (r#"Toss(ball: "ball", bucket: "a")"#, "`a` is a pedestal, not a bucket", 4),
-        (r#"Toss(ball: "ball", bucket: "bucket", throw: (v_x: (0.0, 2.0)))"#, "v_x must be positive", 11),
+        (
+            r#"Toss(ball: "ball", bucket: "bucket", throw: (v_x: (0.0, 2.0)))"#,
+            "`throw.v_x` is Uniform(0.0, 2.0); it must be positive",
+            11,
+        ),
         (r#"Toss(ball: "ball", bucket: "bucket", throw: (v_x: (3.0, 2.0)))"#, "low end above its high end", 11),
         (r#"Toss(ball: "ball", bucket: "bucket", throw: (speed: 2.0))"#, "unknown field `speed`", 11),
         (r#"Toss(ball: "ball", bucket: "bucket", catch_at: (forward: 0.4, height: 0.0))"#, "catch_at", 11),
