@@ -449,7 +449,7 @@ pub struct MetaEnv {
     /// while it plays is not a bump ([`TaskSpec::touch_penalty`]).
     terminal: Vec<bool>,
     /// When set, each episode is recorded at the control rate (see [`MetaEnv::record_episodes`]).
-    record: Option<(RecordOptions, Recorder)>,
+    record: Option<Recorder>,
     /// The decision in progress (between [`MetaEnv::begin_decision`] and
     /// [`MetaEnv::end_decision`]).
     decision: Decision,
@@ -527,15 +527,12 @@ impl MetaEnv {
                 as usize
                 + 2,
         };
-        let recorder = Recorder::new(&self.setup.model, options.clone());
-        self.record = Some((options, recorder));
+        self.record = Some(Recorder::new(&self.setup.model, options));
     }
 
     /// The recording of the current episode so far (when recording), leaving an empty one.
     pub fn recording(&mut self) -> Option<Recording> {
-        let (options, recorder) = self.record.as_mut()?;
-        let fresh = Recorder::new(&self.setup.model, RecordOptions { capacity: 0, ..options.clone() });
-        Some(std::mem::replace(recorder, fresh).finish())
+        self.record.as_mut().map(Recorder::take)
     }
 
     /// Records the current state (when recording).
@@ -546,7 +543,7 @@ impl MetaEnv {
         let control_dt = 1.0 / self.setup.control_hz();
         let terms = self.task.recorded(&self.setup.task, &self.world, control_dt);
         let a = Annotation { skill: self.current, phase: self.phase as f64, terms: &terms, ghost_qpos: None };
-        if let Some((_, recorder)) = self.record.as_mut() {
+        if let Some(recorder) = self.record.as_mut() {
             recorder.record(&self.world, &a);
         }
     }
@@ -912,8 +909,8 @@ impl Env for MetaEnv {
         for c in 0..self.setup.skills.len() {
             self.bind_props(c);
         }
-        if let Some((options, recorder)) = self.record.as_mut() {
-            *recorder = Recorder::new(&self.setup.model, options.clone());
+        if let Some(recorder) = self.record.as_mut() {
+            recorder.restart();
         }
         self.record_frame();
         self.observe(obs);

@@ -275,7 +275,7 @@ pub struct LatentMetaEnv {
     env: LatentEnv<LatentTask>,
     hold: usize,
     setup: Arc<LatentSetup>,
-    record: Option<(RecordOptions, Recorder)>,
+    record: Option<Recorder>,
 }
 
 impl LatentMetaEnv {
@@ -302,18 +302,16 @@ impl LatentMetaEnv {
             ghost: None,
             capacity: self.setup.max_ticks as usize + 2,
         };
-        self.record = Some((options.clone(), Recorder::new(&self.setup.model, options)));
+        self.record = Some(Recorder::new(&self.setup.model, options));
     }
 
     /// The recording of the current episode so far (when recording), leaving an empty one.
     pub fn recording(&mut self) -> Option<Recording> {
-        let (options, recorder) = self.record.as_mut()?;
-        let fresh = Recorder::new(&self.setup.model, RecordOptions { capacity: 0, ..options.clone() });
-        Some(std::mem::replace(recorder, fresh).finish())
+        self.record.as_mut().map(Recorder::take)
     }
 
     fn record_frame(&mut self, tick: usize) {
-        let Some((_, recorder)) = self.record.as_mut() else { return };
+        let Some(recorder) = self.record.as_mut() else { return };
         let world = self.env.inner().world();
         let dt = 1.0 / self.setup.control_hz();
         let terms = self.env.inner().task().state.recorded(&self.setup.task, world, dt);
@@ -360,8 +358,8 @@ impl Env for LatentMetaEnv {
 
     fn reset(&mut self, rng: &mut EnvRng, obs: &mut [f32]) {
         self.env.reset(rng, obs);
-        if let Some((options, recorder)) = self.record.as_mut() {
-            *recorder = Recorder::new(&self.setup.model, options.clone());
+        if let Some(recorder) = self.record.as_mut() {
+            recorder.restart();
         }
         self.record_frame(0);
     }

@@ -317,21 +317,8 @@ impl Recorder {
     /// A recorder for worlds of `model`, with room for `options.capacity` frames.
     pub fn new(model: &WorldModel, options: RecordOptions) -> Self {
         let header = header_of(model, &options);
-        let n = options.capacity;
         let character = header.character();
-        let ghost_bodies = header.ghost_bodies();
-        let rec = Recording {
-            time: Vec::with_capacity(n),
-            qpos: Vec::with_capacity(n * header.nq),
-            poses: Vec::with_capacity(n * header.bodies.len() * POSE),
-            ghost: Vec::with_capacity(n * ghost_bodies * POSE),
-            skill: Vec::with_capacity(n),
-            phase: Vec::with_capacity(n),
-            terms: Vec::with_capacity(n * header.terms.len()),
-            contacts: Vec::with_capacity(n),
-            fall: Vec::with_capacity(n),
-            header,
-        };
+        let rec = Recording::empty(header, options.capacity);
         let ghost_data = options.ghost.as_ref().map(|_| MjData::new(Arc::clone(model.mj_model())));
         Recorder { rec, kin: MjData::new(Arc::clone(model.mj_model())), ghost_data, character }
     }
@@ -402,6 +389,46 @@ impl Recorder {
     /// The recording.
     pub fn finish(self) -> Recording {
         self.rec
+    }
+
+    /// Drops the frames recorded so far (a new episode of the same scene).
+    pub fn restart(&mut self) {
+        let r = &mut self.rec;
+        r.time.clear();
+        r.qpos.clear();
+        r.poses.clear();
+        r.ghost.clear();
+        r.skill.clear();
+        r.phase.clear();
+        r.terms.clear();
+        r.contacts.clear();
+        r.fall.clear();
+        r.header.frames = 0;
+    }
+
+    /// The recording so far, leaving this recorder empty (same header) for the next episode.
+    pub fn take(&mut self) -> Recording {
+        let empty = Recording::empty(self.rec.header.clone(), 0);
+        std::mem::replace(&mut self.rec, empty)
+    }
+}
+
+impl Recording {
+    /// A recording of no frames under `header`, with room for `capacity` frames.
+    fn empty(mut header: Header, n: usize) -> Recording {
+        header.frames = 0;
+        Recording {
+            time: Vec::with_capacity(n),
+            qpos: Vec::with_capacity(n * header.nq),
+            poses: Vec::with_capacity(n * header.bodies.len() * POSE),
+            ghost: Vec::with_capacity(n * header.ghost_bodies() * POSE),
+            skill: Vec::with_capacity(n),
+            phase: Vec::with_capacity(n),
+            terms: Vec::with_capacity(n * header.terms.len()),
+            contacts: Vec::with_capacity(n),
+            fall: Vec::with_capacity(n),
+            header,
+        }
     }
 }
 

@@ -112,3 +112,32 @@ fn damaged_files_are_refused_with_the_file_named() {
     let err = Recording::load(&missing).expect_err("missing").to_string();
     assert!(err.contains("missing.rec") && err.contains("cannot read"), "{err}");
 }
+
+#[test]
+fn a_recorder_hands_out_an_episode_and_starts_the_next_one_empty() {
+    let model = Arc::new(WorldModel::build(ScenarioFile::builtin_default()).expect("default scene"));
+    let mut world = model.new_world();
+    world.reset_in_zone("front", &mut StdRng::seed_from_u64(3)).expect("zone");
+    let options =
+        RecordOptions { title: "t".into(), skills: vec!["s".into()], capacity: 4, ..RecordOptions::default() };
+    let mut rec = Recorder::new(&model, options);
+    let frame = |rec: &mut Recorder, world: &repertoire_scenes::World| {
+        rec.record(world, &Annotation { skill: Some(0), phase: 0.0, terms: &[], ghost_qpos: None })
+    };
+    for _ in 0..3 {
+        frame(&mut rec, &world);
+    }
+    let first = rec.take();
+    assert_eq!((first.frames(), rec.len()), (3, 0));
+    frame(&mut rec, &world);
+    frame(&mut rec, &world);
+    rec.restart();
+    frame(&mut rec, &world);
+    let second = rec.finish();
+    assert_eq!(second.frames(), 1);
+    // The same header but for the frame count.
+    let mut h = second.header.clone();
+    h.frames = first.header.frames;
+    assert_eq!(h, first.header);
+    assert_eq!(second.qpos_at(0), first.qpos_at(0));
+}
