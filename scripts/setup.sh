@@ -6,8 +6,10 @@
 #     the `pybullet` 3.2.7 wheel (pybullet_data/data/motions) and the sit-down/stand-up BVH in the
 #     `bvhtoolbox` 0.1.3 sdist (tests/example_files), each checked against its SHA-256.
 #  2b. third-party bodies the tests load as users bring them, into third_party/bodies: Gymnasium's
-#     MuJoCo humanoid (envs/mujoco/assets/humanoid.xml in the `gymnasium` 1.4.0 wheel), checked
-#     against its SHA-256 (its body map is committed in bodies/);
+#     MuJoCo humanoid (envs/mujoco/assets/humanoid.xml in the `gymnasium` 1.4.0 wheel) and
+#     dm_control's CMU humanoid (locomotion/walkers/assets/humanoid_CMU_V2020.xml in the
+#     `dm-control` 1.0.52 wheel), each checked against its SHA-256 (their body maps are
+#     committed in bodies/);
 #  3. the replay page's npm packages (three.js, inlined into every replay page; playwright-core,
 #     which drives the browser test), by `npm ci` in crates/scenes/web from its committed lock file;
 #  4. Debian's `chromium` for that test (apt-get, as root or through sudo), if /usr/bin/chromium is
@@ -24,6 +26,8 @@ lib="$lib_dir/libmujoco.so.$MUJOCO_VERSION"
 
 clips_dir="$root/third_party/clips"
 bodies_dir="$root/third_party/bodies"
+# The last body added: a folder filled before it came is filled again.
+bodies_ready() { [ -f "$bodies_dir/.complete" ] && [ -f "$bodies_dir/dm_control/humanoid_CMU_V2020.xml" ]; }
 web_dir="$root/crates/scenes/web"
 
 # Steps 3 and 4. Without npm or a way to install chromium this says what to do and goes on: only
@@ -84,7 +88,7 @@ web_and_browser() {
   fi
 }
 
-if [ -f "$lib" ] && [ -L "$lib_dir/libmujoco.so" ] && [ -f "$clips_dir/.complete" ] && [ -f "$bodies_dir/.complete" ]; then
+if [ -f "$lib" ] && [ -L "$lib_dir/libmujoco.so" ] && [ -f "$clips_dir/.complete" ] && bodies_ready; then
   web_and_browser
   exit 0
 fi
@@ -183,9 +187,10 @@ PY
   echo "setup: clip pack installed in third_party/clips" >&2
 fi
 
-if [ ! -f "$bodies_dir/.complete" ]; then
-  echo "setup: fetching third-party bodies (wheel 'gymnasium==1.4.0')" >&2
+if ! bodies_ready; then
+  echo "setup: fetching third-party bodies (wheels 'gymnasium==1.4.0', 'dm-control==1.0.52')" >&2
   "$py" -m pip download --quiet --no-deps --only-binary=:all: --dest "$tmp/gymnasium" "gymnasium==1.4.0"
+  "$py" -m pip download --quiet --no-deps --only-binary=:all: --dest "$tmp/dm_control" "dm-control==1.0.52"
   "$py" - "$tmp" "$tmp/bodies" <<'PY'
 import glob, pathlib, sys, zipfile
 tmp, out = pathlib.Path(sys.argv[1]), pathlib.Path(sys.argv[2])
@@ -195,6 +200,9 @@ from checked import put
 wanted = {
     "gymnasium/humanoid.xml": ("gymnasium/gymnasium-1.4.0-*.whl", "gymnasium/envs/mujoco/assets/humanoid.xml",
                                "85816f372c826d2094b4a598918233bd9c5843b2439119eece2733bdc2e0d073"),
+    "dm_control/humanoid_CMU_V2020.xml": ("dm_control/dm_control-1.0.52-*.whl",
+                                          "dm_control/locomotion/walkers/assets/humanoid_CMU_V2020.xml",
+                                          "bd115de99ad602c2160f8593c8ca7255a3920e2a30751f191b41200f225007f4"),
 }
 for dest, (pattern, member, digest) in wanted.items():
     wheel = glob.glob(str(tmp / pattern))[0]

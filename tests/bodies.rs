@@ -86,3 +86,61 @@ fn a_pelvis_without_a_joint_gets_a_free_one() {
     let msg = WorldModel::build(ScenarioFile::load(dir.join("scene.ron")).unwrap()).err().expect("refused").to_string();
     assert!(msg.contains("body.map.ron") && msg.contains("is on body `pelvis`, not on the pelvis `torso`"), "{msg}");
 }
+
+#[test]
+fn dm_controls_cmu_humanoid_stands_up_facing_x_as_it_ships() {
+    // dm_control's CMU humanoid (fetched from the dm-control wheel by scripts/setup.sh, its map
+    // in bodies/): no free joint in the file (dm_control attaches it), written y up and facing
+    // +z, 56 torque motors. The map's `upright` stands it on Repertoire's axes without an edit.
+    let path = std::path::Path::new("bodies/dm_control_cmu_humanoid.ron");
+    let file = std::path::Path::new("third_party/bodies/dm_control/humanoid_CMU_V2020.xml");
+    assert!(file.exists(), "{} is missing: run scripts/setup.sh", file.display());
+    let shipped = std::fs::read_to_string(file).unwrap();
+    let model = std::sync::Arc::new(
+        WorldModel::build(ScenarioFile::load(path).expect("the scenario")).expect("the body loads"),
+    );
+    assert_eq!(model.index.dof(), 56);
+    assert_eq!(model.pd_motors.len(), 56);
+    // The wrapper and the free joint go on the root's own lines: MuJoCo's line numbers still
+    // point into the file as it ships.
+    assert_eq!(model.body.mjcf.lines().count(), shipped.lines().count());
+    assert!(model.body.mjcf.contains(r#"<freejoint name="repertoire/root"/>"#));
+    let m = model.mj_model();
+    let id = |name: &str| m.name_to_id(mujoco_rs::prelude::MjtObjBase::mjOBJ_BODY, name).expect(name);
+    assert_eq!(model.index.pelvis, id("repertoire/pelvis"));
+    assert_eq!(model.index.pelvis_part, id("root"));
+    let mut world = model.new_world();
+    world.reset(&mut rand::rngs::StdRng::seed_from_u64(1), 0.0, 0.0, 0.0);
+    let at = |name: &str| world.body_position(id(name));
+    let (pelvis, head) = (at("root"), at("head"));
+    assert!(head[2] - pelvis[2] > 0.4, "the head {head:?} stands over the pelvis {pelvis:?}");
+    assert!(world.heading().abs() < 1e-9, "heading {}", world.heading());
+    // Toes ahead of the ankles (+x), the left leg on the left (+y), the soles on the floor.
+    for side in ["l", "r"] {
+        let (foot, toes) = (at(&format!("{side}foot")), at(&format!("{side}toes")));
+        assert!(toes[0] - foot[0] > 0.1, "{side}: toes {toes:?}, foot {foot:?}");
+    }
+    assert!(at("lfemur")[1] - at("rfemur")[1] > 0.15, "left hip at +y");
+    assert!(model.sole_clearance().abs() < 1e-4);
+    let (pitch, roll) = world.pitch_roll();
+    assert!(pitch.abs() < 0.05 && roll.abs() < 0.05, "pitch {pitch}, roll {roll}");
+}
+
+#[test]
+fn upright_is_refused_where_it_cannot_apply() {
+    let dir = temp_dir("upright-refused");
+    let builtin = BodyDef::humanoid();
+    write(&dir, "body.xml", &builtin.mjcf);
+    // The built-in pelvis has its own free joint: `upright` cannot wrap it.
+    let map = builtin.map_text.replace("    root_joint: \"root\",\n", "    upright: Some((0.5, 0.5, 0.5, 0.5)),\n");
+    assert_ne!(map, builtin.map_text);
+    write(&dir, "body.map.ron", &map);
+    write(&dir, "scene.ron", "Scenario(name: \"own\", body: Mjcf(file: \"body.xml\", map: \"body.map.ron\"))");
+    let msg = WorldModel::build(ScenarioFile::load(dir.join("scene.ron")).unwrap()).err().expect("refused").to_string();
+    assert!(msg.contains("body.map.ron") && msg.contains("`upright` needs a pelvis without joints"), "{msg}");
+    // Nor with a root_joint named.
+    let map = builtin.map_text.replace("BodyMap(", "BodyMap(\n    upright: Some((1.0, 0.0, 0.0, 0.0)),");
+    write(&dir, "body.map.ron", &map);
+    let msg = WorldModel::build(ScenarioFile::load(dir.join("scene.ron")).unwrap()).err().expect("refused").to_string();
+    assert!(msg.contains("body.map.ron:4:5") && msg.contains("names a root_joint"), "{msg}");
+}

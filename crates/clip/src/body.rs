@@ -66,9 +66,9 @@ impl ClipBody {
         Self::new(BodyDef::humanoid())
     }
 
-    /// A body named on the command line: `humanoid`, an MJCF file (its map is the same path
-    /// with `.map.ron` in place of `.xml`) or a body-map file `NAME.map.ron` (its MJCF is
-    /// `NAME.xml` beside it).
+    /// A body named on the command line: `humanoid`, a scenario file (its body), an MJCF file
+    /// (its map is the same path with `.map.ron` in place of `.xml`) or a body-map file
+    /// `NAME.map.ron` (its MJCF is `NAME.xml` beside it).
     pub fn from_arg(arg: &str) -> Result<Self> {
         if arg == "humanoid" {
             return Self::humanoid();
@@ -77,11 +77,16 @@ impl ClipBody {
         let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
         let (mjcf, map) = if let Some(stem) = name.strip_suffix(".map.ron") {
             (path.with_file_name(format!("{stem}.xml")), path.clone())
+        } else if name.ends_with(".ron") {
+            // A scenario: its body.
+            return Self::new(repertoire_scenes::ScenarioFile::load(&path)?.body_def()?);
+        } else if let Some(stem) = name.strip_suffix(".map.ron") {
+            (path.with_file_name(format!("{stem}.xml")), path.clone())
         } else if let Some(stem) = name.strip_suffix(".xml") {
             (path.clone(), path.with_file_name(format!("{stem}.map.ron")))
         } else {
             return Err(ClipError::Usage(format!(
-                "--body {arg}: expected `humanoid`, an MJCF file NAME.xml (with NAME.map.ron beside it) or a body map NAME.map.ron (with NAME.xml beside it)"
+                "--body {arg}: expected `humanoid`, a scenario FILE.ron (its body), an MJCF file NAME.xml (with NAME.map.ron beside it) or a body map NAME.map.ron (with NAME.xml beside it)"
             )));
         };
         Self::new(BodyDef::load(&mjcf, &map)?)
@@ -89,7 +94,9 @@ impl ClipBody {
 
     /// Compiles `def` alone and resolves its map.
     pub fn new(def: BodyDef) -> Result<Self> {
-        let (model, index) = def.check()?;
+        let (mut model, index) = def.check()?;
+        // The standing pose on the floor, as the scenes place it (the map's `stand_on_floor`).
+        repertoire_scenes::stand_on_floor(&mut model, &index, &def);
         let njnt = model.ffi().njnt as usize;
         let mut joints = Vec::with_capacity(njnt);
         let mut quat_qpos = Vec::new();
@@ -148,7 +155,7 @@ impl ClipBody {
         self.def.content_hash()
     }
 
-    /// The standing pose (the model's qpos0).
+    /// The standing pose (the model's qpos0, moved onto the floor where the map asks).
     pub fn standing_qpos(&self) -> &[f64] {
         self.model.qpos0()
     }

@@ -320,3 +320,36 @@ fn keyframes_with_unknown_joints_are_located() {
     let msg = LoadedKeyframes::parse(Path::new("typo.ron"), typo.into()).unwrap_err().to_string();
     assert!(msg.contains("typo.ron:1:") && msg.contains("keyz"), "{msg}");
 }
+
+#[test]
+fn cmu_walks_retarget_onto_dm_controls_cmu_humanoid() {
+    // dm_control's CMU humanoid as it ships (scripts/setup.sh fetches it; y up, no free joint,
+    // turned upright and stood on the floor by its map), through the scenario that names it, and
+    // the committed map from CMU subject 16's BVH onto it. It is the CMU skeleton itself, so
+    // the walks fit closely; each keeps the heading change it has on the built-in humanoid.
+    let root = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."));
+    let file = root.join("third_party/bodies/dm_control/humanoid_CMU_V2020.xml");
+    assert!(file.exists(), "{} is missing: run scripts/setup.sh", file.display());
+    let dm = ClipBody::from_arg(root.join("bodies/dm_control_cmu_humanoid.ron").to_str().unwrap()).expect("the body");
+    assert_eq!(dm.index.dof(), 56);
+    let map = root.join("bodies/dm_control_cmu_humanoid.cmu-subject16.bvh.ron");
+    let options = RetargetOptions::default();
+    for name in ["16_15_walk.bvh", "16_17_walk_90deg_left_turn.bvh"] {
+        let source = ClipSource::from_path(&in_mocap(&format!("cmu-subject16-30fps/{name}")), None).unwrap();
+        let on_dm = repertoire_clip::check(&source, &dm, Some(LoadedMap::load(&map).unwrap()), None, &options).unwrap();
+        let built_in = repertoire_clip::check(&source, body(), None, None, &options).unwrap();
+        let (mean, max) = on_dm.error_cm.unwrap();
+        assert!(mean < 1.5 && max < 15.0, "{name}: key-point error mean {mean:.2} cm, max {max:.2} cm");
+        let m = &on_dm.motion;
+        assert!(m.foot_penetration_cm < 0.01, "{name}: feet {:.3} cm into the floor", m.foot_penetration_cm);
+        assert!(m.foot_skate_cm_s < 30.0, "{name}: skate {:.1} cm/s", m.foot_skate_cm_s);
+        let turn = (m.heading_change_deg - built_in.motion.heading_change_deg).abs();
+        assert!(
+            turn < 3.0,
+            "{name}: turns {:.1}° against {:.1}°",
+            m.heading_change_deg,
+            built_in.motion.heading_change_deg
+        );
+        assert!((m.root_drift_m - built_in.motion.root_drift_m).abs() < 0.3, "{name}: drift {:.2} m", m.root_drift_m);
+    }
+}

@@ -54,6 +54,14 @@ pub struct BodyMap {
     /// root stands at another height, used without an edit). `scene check` says by how much.
     #[serde(default)]
     pub stand_on_floor: bool,
+    /// The rotation (quaternion w, x, y, z) that stands the body up facing +x, for a file whose
+    /// root frame is not Repertoire's (x forward, y left, z up). dm_control's CMU humanoid is
+    /// written y up, facing +z: `upright: Some((0.5, 0.5, 0.5, 0.5))`. Needs a pelvis without
+    /// joints: Repertoire puts it, turned by this rotation, inside a body of its own
+    /// ([`UPRIGHT_FRAME`]) that carries the added free joint, so headings, the fall test and
+    /// the clips' root follow Repertoire's axes while the file stays as it is.
+    #[serde(default)]
+    pub upright: Option<(f64, f64, f64, f64)>,
 }
 
 /// How torque motors (`<motor>`, as gymnasium's and dm_control's humanoids have) are driven.
@@ -78,6 +86,9 @@ pub struct MotorPd {
 
 /// The free joint Repertoire adds to a pelvis without one.
 pub const ADDED_ROOT_JOINT: &str = "repertoire/root";
+/// The body Repertoire wraps a pelvis in when the map gives an [`BodyMap::upright`] rotation:
+/// Repertoire's axes, the added free joint on it, the pelvis inside it turned upright.
+pub const UPRIGHT_FRAME: &str = "repertoire/pelvis";
 
 /// A torque motor of an actuated joint, driven as a PD servo ([`MotorPd`]).
 #[derive(Debug, Clone, PartialEq)]
@@ -147,27 +158,46 @@ impl BodyDef {
     /// Gives a pelvis without any joint a free joint ([`ADDED_ROOT_JOINT`]) when the map names
     /// no root joint: a body written to be attached to something (dm_control's) becomes one
     /// that stands on the floor. The joint goes on the pelvis tag's own line, so MuJoCo's line
-    /// numbers still point into the user's file.
+    /// numbers still point into the user's file. With an `upright` rotation the pelvis is
+    /// wrapped instead: `<body name="repertoire/pelvis"><freejoint/><body quat="…">` before its
+    /// tag and the two closing tags after its own, on the same lines.
     fn add_root_joint(&mut self) -> Result<()> {
+        let upright = self.map.upright;
         if self.map.root_joint.is_some() {
-            return Ok(());
+            return match upright {
+                Some(_) => Err(self.map_error(
+                    "upright",
+                    "`upright` turns a pelvis that Repertoire gives a free joint; this map names a root_joint: \
+                     leave root_joint out (the pelvis must have no joint in the file) or turn the body in its file"
+                        .to_string(),
+                )),
+                None => Ok(()),
+            };
         }
         let model = compile(&self.mjcf, &self.mjcf_path)?;
         let Some(pelvis) = model.name_to_id(MjtObjBase::mjOBJ_BODY, &self.map.pelvis) else {
             return Ok(()); // BodyIndex::resolve names the missing pelvis
         };
         if model.body_jntnum()[pelvis] > 0 {
-            return Ok(());
+            return match upright {
+                Some(_) => Err(self.map_error(
+                    "upright",
+                    format!(
+                        "`upright` needs a pelvis without joints (Repertoire then adds the free joint); `{}` has {} in {}",
+                        self.map.pelvis,
+                        model.body_jntnum()[pelvis],
+                        self.mjcf_path.display()
+                    ),
+                )),
+                None => Ok(()),
+            };
         }
         let open = format!("<body name=\"{}\"", self.map.pelvis);
-        let at = self.mjcf.find(&open).and_then(|i| self.mjcf[i..].find('>').map(|j| i + j));
-        match at {
-            Some(end) if !self.mjcf[..end].ends_with('/') => {
-                self.mjcf.insert_str(end + 1, &format!("<freejoint name=\"{ADDED_ROOT_JOINT}\"/>"));
-                Ok(())
-            }
-            _ => Err(self.map_error(
-                &self.map.pelvis.clone(),
+        let start = self.mjcf.find(&open);
+        let at = start.and_then(|i| self.mjcf[i..].find('>').map(|j| i + j));
+        let no_tag = || {
+            self.map_error(
+                &self.map.pelvis,
                 format!(
                     "the pelvis `{}` has no joint and no `<body name=\"{}\">` tag to add a free joint to in {}; \
                      give it `<freejoint/>` or name its root_joint",
@@ -175,8 +205,37 @@ impl BodyDef {
                     self.map.pelvis,
                     self.mjcf_path.display()
                 ),
-            )),
+            )
+        };
+        let (Some(start), Some(end)) = (start, at) else { return Err(no_tag()) };
+        if self.mjcf[..end].ends_with('/') {
+            return Err(no_tag());
         }
+        let Some((w, x, y, z)) = upright else {
+            self.mjcf.insert_str(end + 1, &format!("<freejoint name=\"{ADDED_ROOT_JOINT}\"/>"));
+            return Ok(());
+        };
+        let norm = (w * w + x * x + y * y + z * z).sqrt();
+        if !(norm.is_finite() && norm > 1e-9) {
+            return Err(self.map_error("upright", format!("`upright` ({w}, {x}, {y}, {z}) is not a rotation")));
+        }
+        let Some(close) = closing_body_tag(&self.mjcf, end + 1) else {
+            return Err(self.map_error(
+                &self.map.pelvis,
+                format!("the pelvis `{}` has no closing `</body>` in {}", self.map.pelvis, self.mjcf_path.display()),
+            ));
+        };
+        self.mjcf.insert_str(close, "</body></body>");
+        let q = [w / norm, x / norm, y / norm, z / norm];
+        self.mjcf.insert_str(
+            start,
+            &format!(
+                "<body name=\"{UPRIGHT_FRAME}\"><freejoint name=\"{ADDED_ROOT_JOINT}\"/><body name=\"{UPRIGHT_FRAME}/turn\" \
+                 quat=\"{} {} {} {}\">",
+                q[0], q[1], q[2], q[3]
+            ),
+        );
+        Ok(())
     }
 
     /// Compiles the body alone, so MuJoCo's messages (with line numbers) refer to the user's
@@ -221,6 +280,40 @@ impl BodyDef {
     pub(crate) fn map_error(&self, name: &str, message: String) -> SceneError {
         SceneError::BodyMap { file: self.map_path.clone(), loc: Location::find_quoted(&self.map_text, name), message }
     }
+}
+
+/// The byte just past the `</body>` that closes the body whose opening tag ends before `from`,
+/// skipping comments and self-closing `<body …/>` tags.
+fn closing_body_tag(xml: &str, from: usize) -> Option<usize> {
+    let mut depth = 1usize;
+    let mut i = from;
+    while i < xml.len() {
+        let rest = &xml[i..];
+        let next = rest.find('<')?;
+        i += next;
+        let rest = &xml[i..];
+        if rest.starts_with("<!--") {
+            i += rest.find("-->")? + 3;
+        } else if rest.starts_with("</body") {
+            let end = i + rest.find('>')? + 1;
+            depth -= 1;
+            if depth == 0 {
+                return Some(end);
+            }
+            i = end;
+        } else if rest.starts_with("<body")
+            && rest[5..].starts_with(|c: char| c.is_whitespace() || c == '>' || c == '/')
+        {
+            let end = i + rest.find('>')?;
+            if !xml[..end].ends_with('/') {
+                depth += 1;
+            }
+            i = end + 1;
+        } else {
+            i += 1;
+        }
+    }
+    None
 }
 
 fn parse_map(path: &Path, text: &str) -> Result<BodyMap> {
@@ -355,8 +448,12 @@ pub struct BodyIndex {
     pub root_qpos: usize,
     /// qvel address of the root free joint (3 linear + 3 angular values).
     pub root_dof: usize,
-    /// Body ids.
+    /// The pelvis's frame (heading, pitch, roll, height; the free joint's body): the map's
+    /// pelvis, or the [`UPRIGHT_FRAME`] around it when the map turns the body upright.
     pub pelvis: usize,
+    /// The map's pelvis body itself, whose geoms sit on seats and must not touch the floor
+    /// (the same as `pelvis` unless the map has `upright`).
+    pub pelvis_part: usize,
     /// Torso body id.
     pub torso: usize,
     /// Head body id.
@@ -397,7 +494,12 @@ impl BodyIndex {
                 def.map_error(name, format!("{role} `{name}` is not a body in {}", def.mjcf_path.display()))
             })
         };
-        let pelvis = body("pelvis", &map.pelvis)?;
+        let pelvis_part = body("pelvis", &map.pelvis)?;
+        // With `upright`, the frame of the pelvis is Repertoire's wrapper around it.
+        let pelvis = match map.upright {
+            Some(_) => model.name_to_id(MjtObjBase::mjOBJ_BODY, UPRIGHT_FRAME).unwrap_or(pelvis_part),
+            None => pelvis_part,
+        };
         let torso = body("torso", &map.torso)?;
         let head = body("head", &map.head)?;
         let feet = [body("left_foot", &map.left_foot)?, body("right_foot", &map.right_foot)?];
@@ -543,6 +645,7 @@ impl BodyIndex {
             root_qpos: model.jnt_qposadr()[root] as usize,
             root_dof: model.jnt_dofadr()[root] as usize,
             pelvis,
+            pelvis_part,
             torso,
             head,
             feet,

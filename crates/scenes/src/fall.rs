@@ -189,7 +189,7 @@ pub fn parts(index: &BodyIndex, parent: &[usize]) -> Vec<Part> {
                 Part::Hand
             } else if crate::body::in_subtree(parent, b, index.head) {
                 Part::Head
-            } else if b == index.pelvis || b == index.torso {
+            } else if b == index.pelvis || b == index.pelvis_part || b == index.torso {
                 Part::Trunk
             } else {
                 Part::Limb

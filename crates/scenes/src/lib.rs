@@ -27,7 +27,7 @@ pub use param::Param;
 pub use record::{Annotation, RecordOptions, Recorder, Recording, RecordingError};
 pub use scenario::{LowLevel, Prop, SEATED_FACING_DEG, Scenario, ScenarioFile, SitApproach, SitFall, SpotAround};
 pub use throw::{Throw, ThrowSpec};
-pub use world::{Contacts, World, WorldModel, step_parallel};
+pub use world::{Contacts, World, WorldModel, sole_clearance, stand_on_floor, step_parallel};
 
 /// The MuJoCo version this build links against (e.g. "3.17.0").
 pub fn mujoco_version() -> String {

@@ -120,8 +120,10 @@ pub const SOLE_TOLERANCE_M: f64 = 0.02;
 
 /// The lowest point of the geoms of the feet (their subtrees) at the model's default pose,
 /// above the floor (z = 0).
-fn sole_clearance(model: &Arc<MjModel>, index: &BodyIndex, parent: &[usize]) -> f64 {
-    let mut data = MjData::new(Arc::clone(model));
+pub fn sole_clearance(model: &MjModel, index: &BodyIndex) -> f64 {
+    let parent: Vec<usize> = model.body_parentid().iter().map(|&p| p as usize).collect();
+    let parent = &parent[..];
+    let mut data = MjData::new(model);
     data.forward();
     let (types, sizes, bodies) = (model.geom_type(), model.geom_size(), model.geom_bodyid());
     let (pos, mat) = (data.geom_xpos(), data.geom_xmat());
@@ -146,14 +148,34 @@ fn sole_clearance(model: &Arc<MjModel>, index: &BodyIndex, parent: &[usize]) -> 
     if lowest.is_finite() { lowest } else { 0.0 }
 }
 
+/// Where `body`'s map asks for it (`stand_on_floor`), moves `model`'s default pose up or
+/// down until the feet's lowest point is on the floor. Returns how far it was lowered (m) and
+/// the clearance left.
+pub fn stand_on_floor(model: &mut MjModel, index: &BodyIndex, body: &BodyDef) -> (f64, f64) {
+    let clearance = sole_clearance(model, index);
+    if body.map.stand_on_floor && clearance.abs() > 1e-4 {
+        model.qpos0_mut()[index.root_qpos + 2] -= clearance;
+        (clearance, sole_clearance(model, index))
+    } else {
+        (0.0, clearance)
+    }
+}
+
+impl ScenarioFile {
+    /// The scenario's body: the built-in humanoid or its MJCF file and map, loaded.
+    pub fn body_def(&self) -> Result<BodyDef> {
+        match &self.scenario.body {
+            BodySource::Humanoid => Ok(BodyDef::humanoid()),
+            BodySource::Mjcf { file, map } => BodyDef::load(&self.resolve(file), &self.resolve(map)),
+        }
+    }
+}
+
 impl WorldModel {
     /// Builds the scene of `scenario`: loads its body, checks it alone, composes the scene and
     /// compiles it.
     pub fn build(scenario: ScenarioFile) -> Result<Self> {
-        let body = match &scenario.scenario.body {
-            BodySource::Humanoid => BodyDef::humanoid(),
-            BodySource::Mjcf { file, map } => BodyDef::load(&scenario.resolve(file), &scenario.resolve(map))?,
-        };
+        let body = scenario.body_def()?;
         let (alone, _) = body.check()?;
         let mjcf = scene_mjcf(&body, &scenario.scenario, crate::compose::ground_plane(&alone).is_some())?;
         let mut model = compile(&mjcf, &scenario.path)?;
@@ -222,16 +244,8 @@ impl WorldModel {
             .collect();
         // A body map may ask for the default pose to be moved onto the floor (a third-party file
         // whose root stands at another height, used without an edit).
-        let mut model = Arc::new(model);
-        let mut clearance = sole_clearance(&model, &index, &parent);
-        let mut lowered_by = 0.0;
-        if body.map.stand_on_floor && clearance.abs() > 1e-4 {
-            let mut moved = Arc::try_unwrap(model).unwrap_or_else(|_| unreachable!("only sole_clearance held it"));
-            moved.qpos0_mut()[index.root_qpos + 2] -= clearance;
-            lowered_by = clearance;
-            model = Arc::new(moved);
-            clearance = sole_clearance(&model, &index, &parent);
-        }
+        let (lowered_by, clearance) = stand_on_floor(&mut model, &index, &body);
+        let model = Arc::new(model);
         let pelvis_min = scenario.scenario.fall.pelvis_below * model.qpos0()[index.root_qpos + 2];
         if clearance.abs() > SOLE_TOLERANCE_M {
             let (what, how) = if clearance > 0.0 { ("above", "lower") } else { ("below", "raise") };
@@ -1189,7 +1203,7 @@ impl World {
                 }
                 if let Some(p) = shared.geom_prop[other] {
                     let bit = 1u64 << p.min(63);
-                    if b == idx.pelvis && other == shared.props[p].key_geom {
+                    if b == idx.pelvis_part && other == shared.props[p].key_geom {
                         out.pelvis_on |= bit;
                     }
                     if let Some(side) = idx.hand_of[b] {
