@@ -126,6 +126,8 @@ fn check(
     );
     println!("root drift         {:.2} m", m.root_drift_m);
     println!("heading change     {:+.1}° (left turn positive)", m.heading_change_deg);
+    let (pitch, low, high) = m.pelvis_pitch_deg;
+    println!("pelvis pitch       {pitch:+.1}° mean, {low:+.1}° to {high:+.1}° (forward positive)");
     if report.retarget_seconds > 0.0 {
         println!("retarget           {:.3} s, {:.0} frames/s", report.retarget_seconds, report.frames_per_second);
     }

@@ -71,6 +71,9 @@ pub struct MotionMeasures {
     pub root_drift_m: f64,
     /// Pelvis heading change from the first to the last frame, degrees (left turn positive).
     pub heading_change_deg: f64,
+    /// Mean pelvis pitch over the frames, degrees (positive: tipped forward, the front of the
+    /// pelvis down; Z-Y-X Euler angles of the pelvis frame), and its lowest and highest value.
+    pub pelvis_pitch_deg: (f64, f64, f64),
     /// Seconds from the first to the last frame.
     pub duration_s: f64,
     /// Frames.
@@ -90,9 +93,14 @@ impl MotionMeasures {
         let mut skate_count = 0usize;
         let mut prev: Vec<[f64; 3]> = Vec::new();
         let mut now: Vec<[f64; 3]> = Vec::new();
+        let (mut pitch_sum, mut pitch_low, mut pitch_high) = (0.0, f64::INFINITY, f64::NEG_INFINITY);
         for f in 0..n {
             data.qpos_mut().copy_from_slice(&clip.qpos[f * nq..(f + 1) * nq]);
             data.kinematics();
+            let pitch = (-data.xmat()[body.index.pelvis][6]).clamp(-1.0, 1.0).asin().to_degrees();
+            pitch_sum += pitch;
+            pitch_low = pitch_low.min(pitch);
+            pitch_high = pitch_high.max(pitch);
             penetration = penetration.max(-lowest_foot(body, &data));
             now.clear();
             for &g in body.foot_geoms.iter().flatten() {
@@ -115,6 +123,7 @@ impl MotionMeasures {
             foot_skate_cm_s: if skate_count > 0 { 100.0 * skate_sum / skate_count as f64 } else { 0.0 },
             root_drift_m: (last[r] - first[r]).hypot(last[r + 1] - first[r + 1]),
             heading_change_deg: features.heading_change().to_degrees(),
+            pelvis_pitch_deg: (pitch_sum / n.max(1) as f64, pitch_low, pitch_high),
             duration_s: clip.duration(),
             frames: n,
             fps: clip.fps,

