@@ -154,3 +154,28 @@ fn a_map_that_fits_the_skeleton_poorly_is_warned_about_with_the_maps_that_would_
     let out = repertoire(&dir, &["clip", "check", &file]);
     assert!(!String::from_utf8_lossy(&out.stdout).contains("warning"));
 }
+
+#[test]
+fn a_key_point_far_off_is_named_even_when_the_mean_error_is_low() {
+    // The left toe point driven by the knee joint: the mean over all points stays under the
+    // poor-fit bound, but the toe cannot reach back up to the knee, and `clip check` names it.
+    let dir = temp_dir("clip-point-off");
+    let shipped =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/crates/clip/maps/cmu-subject16.bvh.ron"))
+            .unwrap();
+    let map = shipped.replace("source: \"ltoes\"", "source: \"ltibia\"");
+    assert_ne!(map, shipped);
+    let map = write(&dir, "toe.map.ron", &map);
+    let file = format!("{MOCAP}/cmu-subject16-30fps/16_15_walk.bvh");
+    let out = repertoire(&dir, &["clip", "check", &file, "--map", map.to_str().unwrap()]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{stdout}");
+    let all = stdout.lines().find(|l| l.trim_start().starts_with("all")).expect("overall error line");
+    let mean: f64 = all.split_whitespace().nth(1).unwrap().parse().unwrap();
+    assert!(mean <= 5.0, "the mean stays low: {all}");
+    let warning = stdout.lines().find(|l| l.starts_with("warning")).unwrap_or_else(|| panic!("no warning:\n{stdout}"));
+    assert!(
+        warning.contains("one key point") && warning.contains("left_toe") && !warning.contains("right_toe"),
+        "{warning}"
+    );
+}

@@ -72,6 +72,8 @@ pub fn run(cmd: ClipCommand) -> Result<()> {
 /// Mean key-point retarget error (cm) above which `clip check` warns that the map fits the
 /// skeleton poorly (the shipped clips retarget at 1–4 cm).
 const POOR_FIT_CM: f64 = 5.0;
+/// Mean error of one key point over which `clip check` names it (cm).
+const POOR_POINT_CM: f64 = 8.0;
 
 fn check(
     file: PathBuf,
@@ -94,6 +96,14 @@ fn check(
         Some(name) => println!("map       {name}"),
         None => println!("map       none (keyframes)"),
     }
+    if !report.fits.is_empty() {
+        let each: Vec<String> = report.fits.iter().map(|(name, cm)| format!("{name} {cm:.2} cm")).collect();
+        println!(
+            "          chosen by fit: mean key-point error over the first {:.0} s with each shipped map that takes this skeleton: {}",
+            repertoire_clip::check::FIT_SECONDS,
+            each.join(", ")
+        );
+    }
     println!("frames    {} at {:.2} fps, duration {:.2} s", m.frames, m.fps, m.duration_s);
     if !report.points.is_empty() {
         println!("key point error (cm; vs the source pose re-proportioned to the body)");
@@ -104,6 +114,22 @@ fn check(
     }
     if let Some((mean, max)) = report.error_cm {
         println!("  {:<16} {:<18} {:>7.2} {:>7.2}", "all", "", mean, max);
+        let off: Vec<String> = report
+            .points
+            .iter()
+            .filter(|p| p.mean_cm > POOR_POINT_CM)
+            .map(|p| format!("{} {:.1} cm", p.role.name(), p.mean_cm))
+            .collect();
+        if !off.is_empty() && mean <= POOR_FIT_CM {
+            println!(
+                "warning   {} land{} over {POOR_POINT_CM:.0} cm from where the source puts {}: {} (check the map's source joints and offsets for {})",
+                if off.len() == 1 { "one key point" } else { "key points" },
+                if off.len() == 1 { "s" } else { "" },
+                if off.len() == 1 { "it" } else { "them" },
+                off.join(", "),
+                if off.len() == 1 { "it" } else { "them" },
+            );
+        }
         if mean > POOR_FIT_CM {
             let others: Vec<&str> =
                 report.fitting.iter().map(String::as_str).filter(|n| Some(*n) != report.map.as_deref()).collect();

@@ -4,7 +4,7 @@
 
 use crate::body::ClipBody;
 use crate::clip::Clip;
-use crate::error::Result;
+use crate::error::{ClipError, Result};
 use crate::keyframe::LoadedKeyframes;
 use crate::map::{LoadedMap, Role};
 use crate::retarget::{RetargetOptions, Retargeted, lowest_foot, retarget};
@@ -140,6 +140,9 @@ pub struct CheckReport {
     pub map: Option<String>,
     /// The shipped maps whose joints the source skeleton has (empty for keyframes).
     pub fitting: Vec<String>,
+    /// Where several shipped maps take the skeleton and none was given: each one's mean
+    /// key-point error (cm) over the clip's first [`FIT_SECONDS`]; the lowest was used.
+    pub fits: Vec<(String, f64)>,
     /// Per key point retarget error (empty for keyframes).
     pub points: Vec<PointError>,
     /// Mean and largest retarget error over all key points and frames, cm.
@@ -154,8 +157,44 @@ pub struct CheckReport {
     pub clip: Clip,
 }
 
+/// Seconds of a clip retargeted with each candidate map to choose among them by fit.
+pub const FIT_SECONDS: f64 = 2.0;
+
+/// Mean key-point error (cm) of `map` on the first [`FIT_SECONDS`] of `source` on `body`.
+fn fit_cm(source: &ClipSource, map: LoadedMap, body: &ClipBody, options: &RetargetOptions) -> Result<f64> {
+    let (mut mocap, map) = import(source, Some(map))?;
+    let keep = ((FIT_SECONDS / mocap.motion.frame_time).round() as usize).max(2);
+    mocap.motion.truncate_frames(keep);
+    let rt = retarget(&mocap, source.path(), &map, body, options)?;
+    Ok(point_errors(&rt).1.0)
+}
+
+/// Of `candidates` (maps that each take the source's skeleton), the one whose retarget of the
+/// first [`FIT_SECONDS`] of `source` onto `body` has the lowest mean key-point error, with
+/// every candidate's error (cm) in the order given.
+pub fn best_fit(
+    source: &ClipSource,
+    candidates: Vec<LoadedMap>,
+    body: &ClipBody,
+    options: &RetargetOptions,
+) -> Result<(LoadedMap, Vec<(String, f64)>)> {
+    let mut best: Option<(f64, LoadedMap)> = None;
+    let mut fits = Vec::with_capacity(candidates.len());
+    for candidate in candidates {
+        let cm = fit_cm(source, candidate.clone(), body, options)?;
+        fits.push((candidate.map.name.clone(), cm));
+        if best.as_ref().is_none_or(|(b, _)| cm < *b) {
+            best = Some((cm, candidate));
+        }
+    }
+    let (_, map) = best.ok_or_else(|| ClipError::Usage(format!("{}: no candidate map", source.path().display())))?;
+    Ok((map, fits))
+}
+
 /// Imports, retargets (or interpolates) and measures `source` on `body`. `map` overrides the
-/// shipped map; `fps` resamples the output clip.
+/// shipped map; without one, the shipped map that takes the skeleton, or, where several do,
+/// the one that fits it best (lowest key-point error over the first [`FIT_SECONDS`]). `fps`
+/// resamples the output clip.
 pub fn check(
     source: &ClipSource,
     body: &ClipBody,
@@ -164,14 +203,21 @@ pub fn check(
     options: &RetargetOptions,
 ) -> Result<CheckReport> {
     let mut fitting = Vec::new();
+    let mut fits = Vec::new();
     let (clip, map_name, points, error_cm, seconds, fps_solved) = match source {
         ClipSource::Keyframes(p) => {
             let clip = LoadedKeyframes::load(p)?.to_clip(body)?;
             (clip, None, Vec::new(), None, 0.0, 0.0)
         }
         _ => {
-            let (mocap, map) = import(source, map)?;
+            let given = map.is_some();
+            let (mocap, mut map) = import(source, map)?;
             fitting = crate::map::fitting(map.map.format, &mocap.skeleton, source.path())?;
+            if !given && fitting.len() > 1 {
+                let candidates = crate::map::shipped()?.into_iter().filter(|m| fitting.contains(&m.map.name)).collect();
+                (map, fits) = best_fit(source, candidates, body, options)?;
+            }
+            let (mocap, map) = if given || fits.is_empty() { (mocap, map) } else { import(source, Some(map))? };
             let rt = retarget(&mocap, source.path(), &map, body, options)?;
             let (points, overall) = point_errors(&rt);
             let fps_solved = rt.clip.frame_count() as f64 / rt.seconds.max(1e-9);
@@ -187,6 +233,7 @@ pub fn check(
         source: source.path().to_path_buf(),
         map: map_name,
         fitting,
+        fits,
         points,
         error_cm,
         motion,

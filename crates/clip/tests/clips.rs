@@ -370,3 +370,30 @@ fn cmu_walks_retarget_onto_dm_controls_cmu_humanoid() {
         assert!((m.root_drift_m - built_in.motion.root_drift_m).abs() < 0.3, "{name}: drift {:.2} m", m.root_drift_m);
     }
 }
+
+#[test]
+fn of_maps_that_take_a_skeleton_the_best_fitting_one_is_chosen() {
+    // Two maps take subject 16's skeleton (every source joint is in it): the shipped one and a
+    // copy with the hands' source joints swapped left for right. The fit (key-point error over
+    // the first seconds) tells them apart, whichever comes first.
+    let shipped =
+        LoadedMap::parse(Path::new("cmu-subject16.bvh.ron"), include_str!("../maps/cmu-subject16.bvh.ron").to_string())
+            .unwrap();
+    let text = shipped
+        .text
+        .replace("name: \"cmu-subject16-bvh\"", "name: \"swapped\"")
+        .replace("source: \"lhand\"", "source: \"SWAP\"")
+        .replace("source: \"rhand\"", "source: \"lhand\"")
+        .replace("source: \"SWAP\"", "source: \"rhand\"");
+    let swapped = LoadedMap::parse(Path::new("swapped.ron"), text).unwrap();
+    let source = ClipSource::from_path(&in_mocap("cmu-subject16-30fps/16_15_walk.bvh"), None).unwrap();
+    let options = RetargetOptions::default();
+    for order in [vec![swapped.clone(), shipped.clone()], vec![shipped.clone(), swapped.clone()]] {
+        let first = order[0].map.name.clone();
+        let (chosen, fits) = repertoire_clip::check::best_fit(&source, order, body(), &options).unwrap();
+        assert_eq!(chosen.map.name, "cmu-subject16-bvh", "{fits:?}");
+        assert_eq!(fits[0].0, first);
+        let error = |name: &str| fits.iter().find(|(n, _)| n == name).unwrap().1;
+        assert!(error("swapped") > 2.0 * error("cmu-subject16-bvh"), "{fits:?}");
+    }
+}

@@ -218,8 +218,7 @@ fn an_smpl_layout_npz_picks_the_shipped_smpl_map_and_moves_the_body_as_the_bvh_d
     // spine for their own skeletons): this compares the import, not the maps.
     for point in &mut map.map.points {
         let smpl_point = smpl_map.point(point.role).expect("the SMPL map has every role the BVH map has");
-        (point.target, point.offset, point.weight) =
-            (smpl_point.target.clone(), smpl_point.offset, smpl_point.weight);
+        (point.target, point.offset, point.weight) = (smpl_point.target.clone(), smpl_point.offset, smpl_point.weight);
     }
     let direct = run(&clip, Path::new(WALK), &map);
     // The mapped joints are the BVH's, stored as f4 centimetres: the same motion within 1 mm

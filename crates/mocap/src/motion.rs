@@ -143,6 +143,16 @@ impl Motion {
         self.frame(i)?.rotations.first().copied()
     }
 
+    /// Keeps the first `frames` frames, raw values included.
+    pub fn truncate_frames(&mut self, frames: usize) {
+        let n = frames * self.joint_count;
+        self.translations.truncate(n);
+        self.rotations.truncate(n);
+        if let Some(raw) = &mut self.raw {
+            raw.values.truncate(frames * raw.width);
+        }
+    }
+
     /// Drops the first frame (e.g. a rest or T-pose), raw values included.
     pub fn skip_first_frame(&mut self) {
         if self.frame_count() == 0 {
