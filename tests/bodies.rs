@@ -79,12 +79,104 @@ fn a_pelvis_without_a_joint_gets_a_free_one() {
     write(&dir, "body.xml", &builtin.mjcf);
     let model = WorldModel::build(ScenarioFile::load(dir.join("scene.ron")).unwrap()).expect("its own free joint");
     assert!(!model.body.mjcf.contains("repertoire/root"));
-    // A root_joint on another part than the pelvis is refused, saying what to name instead.
-    let map = builtin.map_text.replace("pelvis: \"pelvis\"", "pelvis: \"torso\"");
+    // The free root may be on a part the pelvis hangs from: with the head named as the pelvis,
+    // the root is still the body's own (on `pelvis`), and everything below it is the character.
+    let map = builtin.map_text.replace("pelvis: \"pelvis\"", "pelvis: \"head\"");
     assert_ne!(map, builtin.map_text);
     write(&dir, "body.map.ron", &map);
+    let model =
+        WorldModel::build(ScenarioFile::load(dir.join("scene.ron")).unwrap()).expect("the head hangs from the root");
+    let id = |name: &str| model.mj_model().name_to_id(mujoco_rs::prelude::MjtObjBase::mjOBJ_BODY, name).unwrap();
+    assert_eq!((model.index.root_body, model.index.pelvis), (id("pelvis"), id("head")));
+    assert!(model.index.is_character[id("left_foot")]);
+    // A root_joint the pelvis does not hang from (another free body in the file) is refused.
+    let xml = builtin.mjcf.replacen(
+        "  </worldbody>",
+        "    <body name=\"ball\" pos=\"2 0 0.2\"><freejoint name=\"ball_free\"/><geom type=\"sphere\" size=\"0.1\"/></body>\n  </worldbody>",
+        1,
+    );
+    write(&dir, "body.xml", &xml);
+    write(&dir, "body.map.ron", &builtin.map_text.replace("root_joint: \"root\"", "root_joint: \"ball_free\""));
     let msg = WorldModel::build(ScenarioFile::load(dir.join("scene.ron")).unwrap()).err().expect("refused").to_string();
-    assert!(msg.contains("body.map.ron") && msg.contains("is on body `pelvis`, not on the pelvis `torso`"), "{msg}");
+    assert!(
+        msg.contains("body.map.ron")
+            && msg.contains("is on body `ball`, and the pelvis `pelvis` does not hang from it"),
+        "{msg}"
+    );
+}
+
+/// The built-in humanoid re-rooted at its torso: the free joint on the torso, the pelvis its
+/// child through the abdomen joints (reversed), the legs below the pelvis. The same bodies,
+/// geoms and actuators; only the tree is turned over.
+fn chest_rooted_humanoid() -> String {
+    let xml = BodyDef::humanoid().mjcf;
+    let swap = |text: String, from: &str, to: &str| {
+        assert!(text.contains(from), "the built-in humanoid has `{from}`");
+        text.replacen(from, to, 1)
+    };
+    let pelvis_open = "<body name=\"pelvis\" pos=\"0 0 0.958\">\n      <freejoint name=\"root\"/>\n      <geom name=\"pelvis\" fromto=\"0 -0.07 -0.03 0 0.07 -0.03\" size=\"0.10\" mass=\"10\"/>\n      <site name=\"pelvis\" pos=\"0 0 0\" size=\"0.02\"/>\n\n      <body name=\"torso\" pos=\"0 0 0.08\">\n        <joint name=\"abdomen_z\" type=\"hinge\" axis=\"0 0 1\" range=\"-45 45\"/>\n        <joint name=\"abdomen_y\" type=\"hinge\" axis=\"0 1 0\" range=\"-30 75\"/>\n        <joint name=\"abdomen_x\" type=\"hinge\" axis=\"1 0 0\" range=\"-35 35\"/>";
+    let xml = swap(xml, pelvis_open, "<body name=\"torso\" pos=\"0 0 1.038\">\n      <freejoint name=\"root\"/>");
+    let pelvis_child = "<body name=\"pelvis\" pos=\"0 0 -0.08\">\n        <joint name=\"abdomen_z\" type=\"hinge\" pos=\"0 0 0.08\" axis=\"0 0 -1\" range=\"-45 45\"/>\n        <joint name=\"abdomen_y\" type=\"hinge\" pos=\"0 0 0.08\" axis=\"0 -1 0\" range=\"-30 75\"/>\n        <joint name=\"abdomen_x\" type=\"hinge\" pos=\"0 0 0.08\" axis=\"-1 0 0\" range=\"-35 35\"/>\n        <geom name=\"pelvis\" fromto=\"0 -0.07 -0.03 0 0.07 -0.03\" size=\"0.10\" mass=\"10\"/>\n        <site name=\"pelvis\" pos=\"0 0 0\" size=\"0.02\"/>\n\n      <body name=\"right_thigh\"";
+    let xml = swap(xml, "</body>\n\n      <body name=\"right_thigh\"", pelvis_child);
+    swap(xml, "    </body>\n  </worldbody>", "    </body>\n    </body>\n  </worldbody>")
+}
+
+#[test]
+fn a_body_whose_free_root_is_its_chest_stands_walks_and_turns_by_its_pelvis() {
+    let dir = temp_dir("chest-root");
+    let builtin = BodyDef::humanoid();
+    write(&dir, "body.xml", &chest_rooted_humanoid());
+    write(&dir, "body.map.ron", &builtin.map_text);
+    write(&dir, "scene.ron", "Scenario(name: \"chest\", body: Mjcf(file: \"body.xml\", map: \"body.map.ron\"))");
+    let model = std::sync::Arc::new(
+        WorldModel::build(ScenarioFile::load(dir.join("scene.ron")).unwrap()).expect("a chest root loads"),
+    );
+    let m = model.mj_model();
+    let id = |name: &str| m.name_to_id(mujoco_rs::prelude::MjtObjBase::mjOBJ_BODY, name).expect(name);
+    let index = &model.index;
+    assert_eq!((index.root_body, index.pelvis), (id("torso"), id("pelvis")));
+    assert_eq!(index.dof(), 25);
+    for part in ["torso", "head", "left_hand", "pelvis", "right_foot"] {
+        assert!(index.is_character[id(part)], "{part} is the character's");
+    }
+    let clearance = common::default_model().sole_clearance();
+    assert!(
+        (model.sole_clearance() - clearance).abs() < 1e-9,
+        "stands as the built-in humanoid does: {}",
+        model.sole_clearance()
+    );
+    // Held in its standing pose for half a second it stays up, its pelvis where the built-in
+    // humanoid's is (the fall rule's pelvis height is the pelvis's, not the root's).
+    let mut world = model.new_world();
+    world.reset(&mut rand::rngs::StdRng::seed_from_u64(1), 0.0, 0.0, 0.0);
+    assert!((world.root_height() - 0.958).abs() < 0.01, "pelvis at {:.3} m", world.root_height());
+    let mut hold = vec![0.0f64; index.dof()];
+    world.joint_angles(&mut hold);
+    for _ in 0..30 {
+        world.step(&hold).expect("steps");
+    }
+    assert!(!world.has_fallen() && world.root_height() > 0.9, "pelvis at {:.3} m", world.root_height());
+    // Headings are the pelvis's: placed facing 90°, it faces 90°.
+    world.place_standing(1.0, 2.0, std::f64::consts::FRAC_PI_2);
+    assert!((world.heading() - std::f64::consts::FRAC_PI_2).abs() < 1e-6, "heading {}", world.heading());
+    let p = world.body_position(id("pelvis"));
+    assert!((p[0] - 1.0).abs() < 0.01 && (p[1] - 2.0).abs() < 0.01, "pelvis at {p:?}");
+    // A CMU walk retargets onto it through the shipped map (the same body names) as onto the
+    // built-in humanoid.
+    let body = repertoire_clip::ClipBody::from_arg(dir.join("scene.ron").to_str().unwrap()).expect("the clip body");
+    let source = repertoire_clip::ClipSource::from_path(
+        std::path::Path::new("mocap/cmu-subject16-30fps/16_17_walk_90deg_left_turn.bvh"),
+        None,
+    )
+    .unwrap();
+    let options = repertoire_clip::RetargetOptions::default();
+    let chest = repertoire_clip::check(&source, &body, None, None, &options).expect("retargets");
+    let built_in =
+        repertoire_clip::check(&source, &repertoire_clip::ClipBody::humanoid().unwrap(), None, None, &options).unwrap();
+    let (mean, _) = chest.error_cm.unwrap();
+    assert!(mean < 2.0 * built_in.error_cm.unwrap().0.max(1.0), "key-point error {mean:.2} cm");
+    let turn = chest.motion.heading_change_deg;
+    assert!((turn - built_in.motion.heading_change_deg).abs() < 5.0, "turns {turn:.1}°");
 }
 
 #[test]

@@ -362,7 +362,7 @@ impl Features {
                 xpos[idx.feet[1]],
                 xpos[idx.head],
             ]);
-            com.push(data.subtree_com()[idx.pelvis]);
+            com.push(data.subtree_com()[idx.root_body]);
             let m = data.xmat()[idx.pelvis];
             heading.push(m[3].atan2(m[0]));
             let d = idx.root_dof;

@@ -247,28 +247,34 @@ impl BodyDef {
         Ok((model, index))
     }
 
-    /// The name of the body's root joint: the map's, or the pelvis's own free joint, or the
-    /// one added to it.
+    /// The name of the body's root joint: the map's, or the first free joint on the pelvis or
+    /// a body it hangs from (a body whose free root is its chest), or the one added to it.
     fn root_joint<'a>(&'a self, model: &'a MjModel, pelvis: usize) -> Result<&'a str> {
         if let Some(name) = &self.map.root_joint {
             return Ok(name);
         }
-        let first = model.body_jntadr()[pelvis];
-        let count = model.body_jntnum()[pelvis];
-        (first..first + count)
-            .map(|j| j as usize)
-            .find(|&j| model.jnt_type()[j] == MjtJoint::mjJNT_FREE)
-            .and_then(|j| model.id_to_name(MjtObjBase::mjOBJ_JOINT, j))
-            .ok_or_else(|| {
-                self.map_error(
-                    &self.map.pelvis,
-                    format!(
-                        "the pelvis `{}` has no free joint and the map names no root_joint (a pelvis with joints \
-                         but no free joint cannot stand on the floor: give it `<freejoint/>`)",
-                        self.map.pelvis
-                    ),
-                )
-            })
+        let parent = model.body_parentid();
+        let mut b = pelvis;
+        while b != 0 {
+            let first = model.body_jntadr()[b];
+            let count = model.body_jntnum()[b];
+            let free = (first..first + count)
+                .map(|j| j as usize)
+                .find(|&j| model.jnt_type()[j] == MjtJoint::mjJNT_FREE)
+                .and_then(|j| model.id_to_name(MjtObjBase::mjOBJ_JOINT, j));
+            if let Some(name) = free {
+                return Ok(name);
+            }
+            b = parent[b] as usize;
+        }
+        Err(self.map_error(
+            &self.map.pelvis,
+            format!(
+                "neither the pelvis `{}` nor a body it hangs from has a free joint, and the map names no root_joint \
+                 (a body with joints but no free joint cannot stand on the floor: give its root body `<freejoint/>`)",
+                self.map.pelvis
+            ),
+        ))
     }
 
     /// A stable 64-bit content hash of the MJCF and the map (FNV-1a), recorded by skills so a
@@ -448,6 +454,9 @@ pub struct BodyIndex {
     pub root_qpos: usize,
     /// qvel address of the root free joint (3 linear + 3 angular values).
     pub root_dof: usize,
+    /// The free joint's body: the pelvis, the upright frame around it, or a part the pelvis
+    /// hangs from (a chest). Everything below it is the character.
+    pub root_body: usize,
     /// The pelvis's frame (heading, pitch, roll, height; the free joint's body): the map's
     /// pelvis, or the [`UPRIGHT_FRAME`] around it when the map turns the body upright.
     pub pelvis: usize,
@@ -515,23 +524,24 @@ impl BodyIndex {
         if model.jnt_type()[root] != MjtJoint::mjJNT_FREE {
             return Err(def.map_error(root_joint, format!("root_joint `{root_joint}` is not a free joint")));
         }
-        if model.jnt_bodyid()[root] as usize != pelvis {
-            let on = model.id_to_name(MjtObjBase::mjOBJ_BODY, model.jnt_bodyid()[root] as usize).unwrap_or("?");
+        let nbody = model.ffi().nbody as usize;
+        let parent: Vec<usize> = model.body_parentid().iter().map(|&p| p as usize).collect();
+        let in_subtree = |b: usize, root: usize| in_subtree(&parent, b, root);
+        // The free root may be another part than the pelvis (a chest), as long as the pelvis
+        // hangs from it: the character is everything below the root.
+        let root_body = model.jnt_bodyid()[root] as usize;
+        if !in_subtree(pelvis, root_body) {
+            let on = model.id_to_name(MjtObjBase::mjOBJ_BODY, root_body).unwrap_or("?");
             return Err(def.map_error(
                 root_joint,
                 format!(
-                    "root_joint `{root_joint}` is on body `{on}`, not on the pelvis `{}`: the free joint must be the \
-                     pelvis's (the sit, the fall test and the clips' root all follow it). Where the body's free root \
-                     is another part (a chest), name that part as the pelvis",
+                    "root_joint `{root_joint}` is on body `{on}`, and the pelvis `{}` does not hang from it: the free \
+                     joint must be on the pelvis or on a body the pelvis hangs from",
                     map.pelvis
                 ),
             ));
         }
-
-        let nbody = model.ffi().nbody as usize;
-        let parent: Vec<usize> = model.body_parentid().iter().map(|&p| p as usize).collect();
-        let in_subtree = |b: usize, root: usize| in_subtree(&parent, b, root);
-        let is_character: Vec<bool> = (0..nbody).map(|b| in_subtree(b, pelvis)).collect();
+        let is_character: Vec<bool> = (0..nbody).map(|b| in_subtree(b, root_body)).collect();
         let mut allowed = Vec::new();
         for name in &map.floor_contact_allowed {
             allowed.push(body("floor_contact_allowed", name)?);
@@ -644,6 +654,7 @@ impl BodyIndex {
         Ok(Self {
             root_qpos: model.jnt_qposadr()[root] as usize,
             root_dof: model.jnt_dofadr()[root] as usize,
+            root_body,
             pelvis,
             pelvis_part,
             torso,

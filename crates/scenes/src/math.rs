@@ -28,6 +28,16 @@ impl Frame {
     }
 }
 
+/// The product `a · b` of two quaternions (w, x, y, z): `b`'s rotation, then `a`'s.
+pub fn quat_mul(a: [f64; 4], b: [f64; 4]) -> [f64; 4] {
+    [
+        a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
+        a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
+        a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1],
+        a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0],
+    ]
+}
+
 /// Wraps an angle into (−π, π].
 pub fn wrap_angle(a: f64) -> f64 {
     let mut a = (a + PI).rem_euclid(2.0 * PI) - PI;

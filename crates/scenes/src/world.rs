@@ -148,6 +148,14 @@ pub fn sole_clearance(model: &MjModel, index: &BodyIndex) -> f64 {
     if lowest.is_finite() { lowest } else { 0.0 }
 }
 
+/// The pelvis's height in the model's default pose (m): what the fall rule's `pelvis_below`
+/// is a fraction of.
+pub fn standing_pelvis_height(model: &MjModel, index: &BodyIndex) -> f64 {
+    let mut data = MjData::new(model);
+    data.kinematics();
+    data.xpos()[index.pelvis][2]
+}
+
 /// Where `body`'s map asks for it (`stand_on_floor`), moves `model`'s default pose up or
 /// down until the feet's lowest point is on the floor. Returns how far it was lowered (m) and
 /// the clearance left.
@@ -246,7 +254,7 @@ impl WorldModel {
         // whose root stands at another height, used without an edit).
         let (lowered_by, clearance) = stand_on_floor(&mut model, &index, &body);
         let model = Arc::new(model);
-        let pelvis_min = scenario.scenario.fall.pelvis_below * model.qpos0()[index.root_qpos + 2];
+        let pelvis_min = scenario.scenario.fall.pelvis_below * standing_pelvis_height(&model, &index);
         if clearance.abs() > SOLE_TOLERANCE_M {
             let (what, how) = if clearance > 0.0 { ("above", "lower") } else { ("below", "raise") };
             return Err(SceneError::Invalid {
@@ -746,7 +754,10 @@ impl World {
         qp[r] = x;
         qp[r + 1] = y;
         qp[r + 2] = qpos0[r + 2];
-        qp[r + 3..r + 7].copy_from_slice(&yaw_quat(yaw.to_degrees()));
+        // Turned about z from the default orientation of the root (identity unless the free
+        // root is a part other than the pelvis, or the file turns it).
+        let q0 = [qpos0[r + 3], qpos0[r + 4], qpos0[r + 5], qpos0[r + 6]];
+        qp[r + 3..r + 7].copy_from_slice(&crate::math::quat_mul(yaw_quat(yaw.to_degrees()), q0));
         self.data.qvel_mut()[idx.root_dof..idx.root_dof + 6].fill(0.0);
         for j in &idx.joints {
             self.data.qvel_mut()[j.dof] = 0.0;
@@ -1100,7 +1111,7 @@ impl World {
 
     /// The character's centre of mass.
     pub fn center_of_mass(&self) -> [f64; 3] {
-        self.data.subtree_com()[self.shared.index.pelvis]
+        self.data.subtree_com()[self.shared.index.root_body]
     }
 
     /// Height of the pelvis above the floor.
