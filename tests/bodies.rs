@@ -136,6 +136,8 @@ fn a_body_whose_free_root_is_its_chest_stands_walks_and_turns_by_its_pelvis() {
     let index = &model.index;
     assert_eq!((index.root_body, index.pelvis), (id("torso"), id("pelvis")));
     assert_eq!(index.dof(), 25);
+    let said = common::ok(&common::repertoire(&["scene", "check", dir.join("scene.ron").to_str().unwrap()]));
+    assert!(said.contains("root: the free joint is on `torso`; the pelvis `pelvis` hangs from it"), "{said}");
     for part in ["torso", "head", "left_hand", "pelvis", "right_foot"] {
         assert!(index.is_character[id(part)], "{part} is the character's");
     }
@@ -197,6 +199,11 @@ fn dm_controls_cmu_humanoid_stands_up_facing_x_as_it_ships() {
     // point into the file as it ships.
     assert_eq!(model.body.mjcf.lines().count(), shipped.lines().count());
     assert!(model.body.mjcf.contains(r#"<freejoint name="repertoire/root"/>"#));
+    let said = common::ok(&common::repertoire(&["scene", "check", path.to_str().unwrap()]));
+    assert!(
+        said.contains("root: free joint `repertoire/root` added (the file has none) on `repertoire/pelvis`"),
+        "{said}"
+    );
     let m = model.mj_model();
     let id = |name: &str| m.name_to_id(mujoco_rs::prelude::MjtObjBase::mjOBJ_BODY, name).expect(name);
     assert_eq!(model.index.pelvis, id("repertoire/pelvis"));

@@ -96,6 +96,27 @@ fn check(file: Option<PathBuf>) -> Result<()> {
     Ok(())
 }
 
+/// Where the body's free root is and what Repertoire added or turned to get it.
+fn describe_root(model: &WorldModel) -> String {
+    use repertoire::scenes::body::{ADDED_ROOT_JOINT, UPRIGHT_FRAME};
+    let m = model.mj_model();
+    let name = |b: usize| m.id_to_name(MjtObjBase::mjOBJ_BODY, b).unwrap_or("?").to_string();
+    let index = &model.index;
+    let pelvis = name(index.pelvis_part);
+    let added = model.body.mjcf.contains(&format!("name=\"{ADDED_ROOT_JOINT}\""));
+    match model.body.map.upright {
+        Some((w, x, y, z)) if name(index.root_body) == UPRIGHT_FRAME => format!(
+            "free joint `{ADDED_ROOT_JOINT}` added (the file has none) on `{UPRIGHT_FRAME}`, which holds the pelvis `{pelvis}` \
+             turned upright by the map's ({w}, {x}, {y}, {z})"
+        ),
+        _ if added => format!("free joint `{ADDED_ROOT_JOINT}` added on the pelvis `{pelvis}` (the file has none)"),
+        _ if index.root_body != index.pelvis => {
+            format!("the free joint is on `{}`; the pelvis `{pelvis}` hangs from it", name(index.root_body))
+        }
+        _ => format!("the pelvis `{pelvis}`'s own free joint"),
+    }
+}
+
 /// The body: file, DoF, mass, standing height and pose, joints, motors driven as PD servos.
 fn print_body(model: &WorldModel, mass: f64, height: f64) {
     println!("body      {} (hash {})", model.body.mjcf_path.display(), model.body.content_hash());
@@ -112,6 +133,7 @@ fn print_body(model: &WorldModel, mass: f64, height: f64) {
             if model.lowered_by > 0.0 { "down" } else { "up" }
         );
     }
+    println!("          root: {}", describe_root(model));
     println!("          joints: {}", model.index.joints.iter().map(|j| j.name.as_str()).collect::<Vec<_>>().join(" "));
     if !model.pd_motors.is_empty() {
         let each: Vec<String> = model
