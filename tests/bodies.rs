@@ -179,6 +179,21 @@ fn a_body_whose_free_root_is_its_chest_stands_walks_and_turns_by_its_pelvis() {
     assert!(mean < 2.0 * built_in.error_cm.unwrap().0.max(1.0), "key-point error {mean:.2} cm");
     let turn = chest.motion.heading_change_deg;
     assert!((turn - built_in.motion.heading_change_deg).abs() < 5.0, "turns {turn:.1}°");
+    // Played and recorded, its motion exports as BVH from its root, the torso.
+    let clip = dir.join("turn.clip.ron");
+    chest.clip.save(&clip).unwrap();
+    let scene = dir.join("scene.ron");
+    let rec = dir.join("turn.rec");
+    let bvh = dir.join("turn.bvh");
+    for args in [
+        ["clip", "play", clip.to_str().unwrap(), "--scene", scene.to_str().unwrap(), "--record", rec.to_str().unwrap()],
+        ["export", rec.to_str().unwrap(), "--bvh", bvh.to_str().unwrap(), "", "", ""],
+    ] {
+        let args: Vec<&str> = args.into_iter().filter(|a| !a.is_empty()).collect();
+        common::ok(&common::repertoire(&args));
+    }
+    let text = std::fs::read_to_string(&bvh).unwrap();
+    assert!(text.contains("ROOT torso") && text.contains("JOINT pelvis"), "{}", &text[..200.min(text.len())]);
 }
 
 #[test]

@@ -129,7 +129,8 @@ pub struct Header {
     pub geoms: Vec<GeomInfo>,
     /// Props by name, with their body index.
     pub props: Vec<(String, usize)>,
-    /// The character's root body (pelvis), index into `bodies`.
+    /// The character's root body (the free joint's: the pelvis, or the part it hangs from), index
+    /// into `bodies`.
     pub root: usize,
     /// The character's feet (left, right), indices into `bodies` (format 2 on).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -303,7 +304,7 @@ pub fn header_of(model: &WorldModel, options: &RecordOptions) -> Header {
         bodies,
         geoms,
         props: model.props.iter().map(|p| (p.name.clone(), p.body - 1)).collect(),
-        root: model.index.pelvis - 1,
+        root: model.index.root_body - 1,
         feet: Some(model.index.feet.map(|b| b - 1)),
         skills: options.skills.clone(),
         terms: options.terms.clone(),
