@@ -80,8 +80,6 @@ impl ClipBody {
         } else if name.ends_with(".ron") {
             // A scenario: its body.
             return Self::new(repertoire_scenes::ScenarioFile::load(&path)?.body_def()?);
-        } else if let Some(stem) = name.strip_suffix(".map.ron") {
-            (path.with_file_name(format!("{stem}.xml")), path.clone())
         } else if let Some(stem) = name.strip_suffix(".xml") {
             (path.clone(), path.with_file_name(format!("{stem}.map.ron")))
         } else {

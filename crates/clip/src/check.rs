@@ -211,13 +211,14 @@ pub fn check(
         }
         _ => {
             let given = map.is_some();
-            let (mocap, mut map) = import(source, map)?;
+            let (mut mocap, mut map) = import(source, map)?;
             fitting = crate::map::fitting(map.map.format, &mocap.skeleton, source.path())?;
             if !given && fitting.len() > 1 {
                 let candidates = crate::map::shipped()?.into_iter().filter(|m| fitting.contains(&m.map.name)).collect();
                 (map, fits) = best_fit(source, candidates, body, options)?;
+                // Imported again: the map sets the unit and whether frame 0 is a rest pose.
+                (mocap, map) = import(source, Some(map))?;
             }
-            let (mocap, map) = if given || fits.is_empty() { (mocap, map) } else { import(source, Some(map))? };
             let rt = retarget(&mocap, source.path(), &map, body, options)?;
             let (points, overall) = point_errors(&rt);
             let fps_solved = rt.clip.frame_count() as f64 / rt.seconds.max(1e-9);
