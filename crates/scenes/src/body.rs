@@ -457,8 +457,8 @@ pub struct BodyIndex {
     /// The free joint's body: the pelvis, the upright frame around it, or a part the pelvis
     /// hangs from (a chest). Everything below it is the character.
     pub root_body: usize,
-    /// The pelvis's frame (heading, pitch, roll, height; the free joint's body): the map's
-    /// pelvis, or the [`UPRIGHT_FRAME`] around it when the map turns the body upright.
+    /// The pelvis's frame (heading, pitch, roll, height): the map's pelvis, or the
+    /// [`UPRIGHT_FRAME`] around it when the map turns the body upright.
     pub pelvis: usize,
     /// The map's pelvis body itself, whose geoms sit on seats and must not touch the floor
     /// (the same as `pelvis` unless the map has `upright`).
