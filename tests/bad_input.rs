@@ -197,6 +197,18 @@ fn torque_motors_are_driven_as_pd_servos_and_other_actuators_refused() {
     let map = builtin.map_text.replacen("BodyMap(", "BodyMap(\n    motor_pd: (kp: Some(400.0)),", 1);
     let model = user_body(&dir, &xml, &map).expect("map gains");
     assert!(model.pd_motors.iter().all(|m| m.kp == 400.0 && m.kv == 40.0), "{:?}", model.pd_motors);
+    // A peak torque of the map's replaces the motor's own (and sets the default gains from it).
+    let map = builtin.map_text.replacen("BodyMap(", "BodyMap(\n    motor_pd: (peaks: {\"left_knee\": 500.0}),", 1);
+    let model = user_body(&dir, &xml, &map).expect("map peaks");
+    let knee = model.pd_motors.iter().find(|m| m.joint == "left_knee").expect("the knee motor");
+    assert_eq!((knee.kp, knee.max_torque), (1000.0, Some(500.0)), "{knee:?}");
+    // Gains or peaks for a joint that is not actuated are refused at their line.
+    let map = builtin.map_text.replacen("BodyMap(", "BodyMap(\n    motor_pd: (peaks: {\"left_kne\": 500.0}),", 1);
+    let msg = user_body(&dir, &xml, &map).err().expect("refused").to_string();
+    assert!(
+        msg.contains("body.map.ron:4") && msg.contains("`left_kne`, which is not among the actuated_joints"),
+        "{msg}"
+    );
     // A motor with no range gives no peak torque to take gains from: the map must give them.
     let unlimited = xml.replace(r#"gear="100" ctrlrange="-3 3""#, r#"gear="100" ctrllimited="false""#);
     let msg = user_body(&dir, &unlimited, &builtin.map_text).err().expect("refused").to_string();

@@ -210,6 +210,10 @@ fn dm_controls_cmu_humanoid_stands_up_facing_x_as_it_ships() {
     );
     assert_eq!(model.index.dof(), 56);
     assert_eq!(model.pd_motors.len(), 56);
+    // The gains and peak torques of dm_control's position-controlled variant, over the file's
+    // weaker motors (the ankle's gear is 20).
+    let ankle = model.pd_motors.iter().find(|m| m.joint == "lfootrx").expect("an ankle");
+    assert_eq!((ankle.kp, ankle.kv, ankle.max_torque), (120.0, 6.0, Some(120.0)));
     // The wrapper and the free joint go on the root's own lines: MuJoCo's line numbers still
     // point into the file as it ships.
     assert_eq!(model.body.mjcf.lines().count(), shipped.lines().count());

@@ -82,6 +82,10 @@ pub struct MotorPd {
     /// Per joint: (kp, kv), over the two above.
     #[serde(default)]
     pub joints: std::collections::BTreeMap<String, (f64, f64)>,
+    /// Per joint: the peak torque (N·m) in place of the motor's own, as dm_control's
+    /// position-controlled CMU humanoid gives its joints more force than the file's motors.
+    #[serde(default)]
+    pub peaks: std::collections::BTreeMap<String, f64>,
 }
 
 /// The free joint Repertoire adds to a pelvis without one.
@@ -340,6 +344,10 @@ pub fn compile(mjcf: &str, file: &Path) -> Result<MjModel> {
 /// the force range the motor's own. Position servos and anything else are left to
 /// [`BodyIndex::resolve`]. Returns the motors it converted.
 pub fn drive_motors_as_pd(model: &mut MjModel, def: &BodyDef) -> Result<Vec<PdMotor>> {
+    let pd = &def.map.motor_pd;
+    if let Some(name) = pd.joints.keys().chain(pd.peaks.keys()).find(|n| !def.map.actuated_joints.contains(n)) {
+        return Err(def.map_error(name, format!("motor_pd names `{name}`, which is not among the actuated_joints")));
+    }
     let mut driven = Vec::new();
     for name in &def.map.actuated_joints {
         let Some(j) = model.name_to_id(MjtObjBase::mjOBJ_JOINT, name) else { continue };
@@ -369,8 +377,17 @@ pub fn drive_motors_as_pd(model: &mut MjModel, def: &BodyDef) -> Result<Vec<PdMo
         } else {
             None
         };
+        let force = match pd.peaks.get(name) {
+            Some(&peak) if peak.is_finite() && peak > 0.0 && g != 0.0 => Some([-peak / g.abs(), peak / g.abs()]),
+            Some(&peak) => {
+                return Err(def.map_error(
+                    name,
+                    format!("the peak torque of `{name}` is {peak}; it must be a positive number of N·m"),
+                ));
+            }
+            None => force,
+        };
         let max_torque = force.map(|[lo, hi]| lo.abs().max(hi.abs()) * g.abs());
-        let pd = &def.map.motor_pd;
         let (kp, kv) = match (pd.joints.get(name), pd.kp, max_torque) {
             (Some(&(kp, kv)), _, _) => (kp, kv),
             (None, Some(kp), _) => (kp, pd.kv.unwrap_or(kp / 10.0)),
