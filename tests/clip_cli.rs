@@ -124,14 +124,26 @@ fn a_clip_retargeted_onto_another_body_is_refused_by_play_and_train() {
     assert!(!out.status.success() && err.contains("retargeted onto another body"), "{err}");
 }
 
+/// The shipped map of CMU subject 16's BVH export, for tests to alter.
+const SUBJECT16_MAP: &str = include_str!("../crates/clip/maps/cmu-subject16.bvh.ron");
+
+/// `clip check` of the 16_15 walk with `map` written as a user's map file in `dir`: its output,
+/// the command having succeeded (a poor fit is a warning, not a refusal).
+fn check_walk_with_map(dir: &Path, map: &str) -> String {
+    let map = write(dir, "user.map.ron", map);
+    let file = format!("{MOCAP}/cmu-subject16-30fps/16_15_walk.bvh");
+    let out = repertoire(dir, &["clip", "check", &file, "--map", map.to_str().unwrap()]);
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(out.status.success(), "a warning, not a refusal: {stdout}");
+    stdout
+}
+
 #[test]
 fn a_map_that_fits_the_skeleton_poorly_is_warned_about_with_the_maps_that_would_take_it() {
     // A user's map with the arms' source joints swapped left for right: every joint exists, so
     // it is accepted, but the hands cannot reach where the source puts them.
     let dir = temp_dir("clip-poor-fit");
-    let shipped =
-        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/crates/clip/maps/cmu-subject16.bvh.ron"))
-            .unwrap();
+    let shipped = SUBJECT16_MAP;
     let mut map = shipped.replace("name: \"cmu-subject16-bvh\"", "name: \"mine\"");
     for (a, b) in [("lhand", "rhand"), ("lradius", "rradius")] {
         map = map
@@ -140,17 +152,14 @@ fn a_map_that_fits_the_skeleton_poorly_is_warned_about_with_the_maps_that_would_
             .replace("source: \"SWAP\"", &format!("source: \"{b}\""));
     }
     assert_ne!(map, shipped);
-    let map = write(&dir, "mine.map.ron", &map);
-    let file = format!("{MOCAP}/cmu-subject16-30fps/16_15_walk.bvh");
-    let out = repertoire(&dir, &["clip", "check", &file, "--map", map.to_str().unwrap()]);
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "a warning, not a refusal: {stdout}");
+    let stdout = check_walk_with_map(&dir, &map);
     let warning = stdout.lines().find(|l| l.starts_with("warning")).unwrap_or_else(|| panic!("no warning:\n{stdout}"));
     assert!(
         warning.contains("fits this skeleton poorly") && warning.contains("cmu-subject16-bvh (--map)"),
         "{warning}"
     );
     // The shipped map on the same file fits: no warning.
+    let file = format!("{MOCAP}/cmu-subject16-30fps/16_15_walk.bvh");
     let out = repertoire(&dir, &["clip", "check", &file]);
     assert!(!String::from_utf8_lossy(&out.stdout).contains("warning"));
 }
@@ -160,16 +169,9 @@ fn a_key_point_far_off_is_named_even_when_the_mean_error_is_low() {
     // The left toe point driven by the knee joint: the mean over all points stays under the
     // poor-fit bound, but the toe cannot reach back up to the knee, and `clip check` names it.
     let dir = temp_dir("clip-point-off");
-    let shipped =
-        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/crates/clip/maps/cmu-subject16.bvh.ron"))
-            .unwrap();
-    let map = shipped.replace("source: \"ltoes\"", "source: \"ltibia\"");
-    assert_ne!(map, shipped);
-    let map = write(&dir, "toe.map.ron", &map);
-    let file = format!("{MOCAP}/cmu-subject16-30fps/16_15_walk.bvh");
-    let out = repertoire(&dir, &["clip", "check", &file, "--map", map.to_str().unwrap()]);
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "{stdout}");
+    let map = SUBJECT16_MAP.replace("source: \"ltoes\"", "source: \"ltibia\"");
+    assert_ne!(map, SUBJECT16_MAP);
+    let stdout = check_walk_with_map(&dir, &map);
     let all = stdout.lines().find(|l| l.trim_start().starts_with("all")).expect("overall error line");
     let mean: f64 = all.split_whitespace().nth(1).unwrap().parse().unwrap();
     assert!(mean <= 5.0, "the mean stays low: {all}");

@@ -122,7 +122,6 @@ pub const SOLE_TOLERANCE_M: f64 = 0.02;
 /// above the floor (z = 0).
 pub fn sole_clearance(model: &MjModel, index: &BodyIndex) -> f64 {
     let parent: Vec<usize> = model.body_parentid().iter().map(|&p| p as usize).collect();
-    let parent = &parent[..];
     let mut data = MjData::new(model);
     data.forward();
     let (types, sizes, bodies) = (model.geom_type(), model.geom_size(), model.geom_bodyid());
@@ -131,7 +130,7 @@ pub fn sole_clearance(model: &MjModel, index: &BodyIndex) -> f64 {
     let mut lowest = f64::INFINITY;
     for g in 0..bodies.len() {
         let b = bodies[g] as usize;
-        if !index.feet.iter().any(|&f| crate::body::in_subtree(parent, b, f)) {
+        if !index.feet.iter().any(|&f| crate::body::in_subtree(&parent, b, f)) {
             continue;
         }
         let (s, r) = (sizes[g], [mat[g][6], mat[g][7], mat[g][8]]);
