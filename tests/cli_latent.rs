@@ -52,6 +52,27 @@ fn collect_train_and_eval_a_latent_model() {
     assert!(text.contains("| walk | 2 |") && text.contains("| mean |"), "{text}");
     assert!(model.join("eval/one_shot.md").exists() && model.join("eval/one_shot.csv").exists());
 
+    // An AWR model beside it, both compared on the same starts; turn_left is in neither
+    // dataset, so it is marked held out.
+    let awr = dir.join("awr");
+    let args = ["--config", config.to_str().unwrap(), "--updates", "60", "--weighting", "awr", "--out"];
+    ok(&repertoire(&[&["latent", "train", data.to_str().unwrap()][..], &args, &[awr.to_str().unwrap()]].concat()));
+    let manifest = std::fs::read_to_string(awr.join("latent.ron")).unwrap();
+    assert!(manifest.contains("weighting: Awr("), "{manifest}");
+    let compare = dir.join("compare");
+    let pair = [model.to_str().unwrap(), awr.to_str().unwrap(), "--skills", "walk,turn_left", "--episodes", "2"];
+    let out = repertoire(&[&["latent", "eval"][..], &pair].concat());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("--out"), "{err}");
+    let text = ok(&repertoire(&[&["latent", "eval"][..], &pair, &["--out", compare.to_str().unwrap()]].concat()));
+    assert!(text.contains("| model | BC | 60 |") && text.contains("| awr | AWR, temperature 1 | 60 |"), "{text}");
+    assert!(text.contains("turn_left (held out)") && text.contains("mean, held-out clips"), "{text}");
+    for name in ["model", "awr"] {
+        let table = std::fs::read_to_string(compare.join(name).join("one_shot.md")).unwrap();
+        assert!(table.contains("| turn_left (held out) | 2 |") && table.contains("| mean, trained clips |"), "{table}");
+    }
+    assert!(std::fs::read_to_string(compare.join("comparison.md")).unwrap().contains("the same starts"));
+
     // A high level over z for one PPO iteration, beside z = 0.
     let text = ok(&repertoire(&[
         "latent",

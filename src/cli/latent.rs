@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, bail};
 use clap::{Subcommand, ValueEnum};
 use repertoire_latent::dataset::{CollectOptions, Dataset, collect};
-use repertoire_latent::eval::{csv, markdown, one_shot};
+use repertoire_latent::eval::{OneShotRow, comparison_markdown, csv, markdown, one_shot_many};
 use repertoire_latent::model::{LatentConfig, LatentPolicy, Weighting};
 use repertoire_latent::train::{TrainOptions, train};
 use repertoire_skill::train::default_run_dir;
@@ -24,6 +24,8 @@ pub enum WeightingArg {
     Clip,
     /// Reward-weighted regression on the imitation return-to-go.
     Rwr,
+    /// Advantage-weighted regression: the return-to-go against its mean at the same clip phase.
+    Awr,
 }
 
 #[derive(Debug, Subcommand)]
@@ -133,9 +135,9 @@ pub struct TrainArgs {
     /// Loss weighting.
     #[arg(long, value_enum)]
     pub weighting: Option<WeightingArg>,
-    /// RWR temperature (on the imitation return-to-go).
-    #[arg(long, default_value_t = 1.0)]
-    pub rwr_temperature: f32,
+    /// Temperature of RWR's and AWR's exponent (on the imitation return-to-go, discount 0.95).
+    #[arg(long, alias = "rwr-temperature", default_value_t = 1.0)]
+    pub temperature: f32,
     /// Most Adam updates.
     #[arg(long, default_value_t = 1_000_000)]
     pub updates: usize,
@@ -153,8 +155,10 @@ pub struct TrainArgs {
 /// `latent eval`'s arguments.
 #[derive(Debug, clap::Args)]
 pub struct EvalArgs {
-    /// The model folder (from `latent train`).
-    pub model: PathBuf,
+    /// The model folder (from `latent train`); several compare them on the same starts
+    /// (`--out` then required: each model's table in a folder of its name, and comparison.md).
+    #[arg(required = true, num_args = 1..)]
+    pub models: Vec<PathBuf>,
     #[command(flatten)]
     pub experts: Experts,
     /// Episodes per skill and controller.
@@ -246,7 +250,7 @@ fn collect_cmd(
 
 /// `latent train`.
 fn train_cmd(
-    TrainArgs { data, config, latent_dim, beta, weighting, rwr_temperature, updates, minutes, seed, out }: TrainArgs,
+    TrainArgs { data, config, latent_dim, beta, weighting, temperature, updates, minutes, seed, out }: TrainArgs,
     command: String,
 ) -> Result<()> {
     let mut cfg = match &config {
@@ -270,9 +274,8 @@ fn train_cmd(
     match weighting {
         Some(WeightingArg::Bc) => cfg.weighting = Weighting::Bc,
         Some(WeightingArg::Clip) => cfg.weighting = Weighting::ClipBalanced,
-        Some(WeightingArg::Rwr) => {
-            cfg.weighting = Weighting::Rwr { temperature: rwr_temperature, gamma: 0.95, max_weight: 20.0 }
-        }
+        Some(WeightingArg::Rwr) => cfg.weighting = Weighting::Rwr { temperature, gamma: 0.95, max_weight: 20.0 },
+        Some(WeightingArg::Awr) => cfg.weighting = Weighting::Awr { temperature, gamma: 0.95, max_weight: 20.0 },
         None => {}
     }
     let dataset = Dataset::load(&data)?;
@@ -312,27 +315,74 @@ fn train_cmd(
 
 /// `latent eval`.
 fn eval_cmd(
-    EvalArgs { model, experts: Experts { skills, specs, library }, episodes, batch, seed, out }: EvalArgs,
+    EvalArgs { models, experts: Experts { skills, specs, library }, episodes, batch, seed, out }: EvalArgs,
     command: String,
 ) -> Result<()> {
-    let mut policy = LatentPolicy::load(&model)?;
-    let rows = one_shot(&mut policy, &model, &library, &spec_paths(&specs, &skills)?, episodes, batch, seed)?;
-    let dir = if model.is_dir() { model.clone() } else { model.parent().unwrap_or(Path::new(".")).to_path_buf() };
-    let out = out.unwrap_or_else(|| dir.join("eval"));
-    std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
-    let md = markdown(&rows);
+    let spec_files = spec_paths(&specs, &skills)?;
+    let mut policies = models.iter().map(|m| LatentPolicy::load(m)).collect::<std::result::Result<Vec<_>, _>>()?;
+    let results = one_shot_many(&mut policies, &models, &library, &spec_files, episodes, batch, seed)?;
+    let about = |what: &str| {
+        format!(
+            "One-shot imitation through {what} ({episodes} episodes per clip from random reference frames, start \
+             seed {seed}, the same starts for the expert and the latent model; lengths and returns normalised \
+             as in MoCapAct Table 2; a clip whose skill is not in the model's dataset is marked held out). \
+             Command: `{command}`\n\n"
+        )
+    };
+    let write_table = |dir: &Path, model: &Path, rows: &[OneShotRow]| -> Result<()> {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        let md = markdown(rows);
+        let page = format!("{}{md}", about(&model.display().to_string()));
+        repertoire_latent::error::write_atomic(&dir.join("one_shot.md"), page.as_bytes())?;
+        repertoire_latent::error::write_atomic(&dir.join("one_shot.csv"), csv(rows).as_bytes())?;
+        Ok(())
+    };
+    if let [model] = models.as_slice() {
+        let rows = &results[0];
+        let dir = if model.is_dir() { model.clone() } else { model.parent().unwrap_or(Path::new(".")).to_path_buf() };
+        let out = out.unwrap_or_else(|| dir.join("eval"));
+        write_table(&out, model, rows)?;
+        print!("{}", markdown(rows));
+        println!("written to {}", out.join("one_shot.md").display());
+        return Ok(());
+    }
+    let Some(out) = out else { bail!("several models are compared into one folder: name it with --out") };
+    let labels = model_labels(&models);
+    let mut compared = Vec::new();
+    for ((model, label), (rows, policy)) in models.iter().zip(&labels).zip(results.into_iter().zip(&policies)) {
+        write_table(&out.join(label), model, &rows)?;
+        let weighting = policy.manifest.config.weighting.label();
+        compared.push((label.clone(), weighting, policy.manifest.training.updates, rows));
+    }
+    let table = comparison_markdown(&compared);
     let page = format!(
-        "One-shot imitation through {} ({} episodes per clip from random reference frames, start seed \
-         {seed}, the same starts for the expert and the latent model; lengths and returns normalised as \
-         in MoCapAct Table 2). Command: `{command}`\n\n{md}",
-        model.display(),
-        episodes
+        "{}The latent model's return as a share of the expert's, per clip; each model's full table is in \
+         the folder of its name.\n\n{table}",
+        about(&format!("{} models", models.len()))
     );
-    repertoire_latent::error::write_atomic(&out.join("one_shot.md"), page.as_bytes())?;
-    repertoire_latent::error::write_atomic(&out.join("one_shot.csv"), csv(&rows).as_bytes())?;
-    print!("{md}");
-    println!("written to {}", out.join("one_shot.md").display());
+    repertoire_latent::error::write_atomic(&out.join("comparison.md"), page.as_bytes())?;
+    print!("{table}");
+    println!("written to {}", out.join("comparison.md").display());
     Ok(())
+}
+
+/// Folder names for compared models: each model's own folder name, or its path with `/` → `-`
+/// where two share a name.
+fn model_labels(models: &[PathBuf]) -> Vec<String> {
+    let name =
+        |m: &PathBuf| m.file_name().map_or_else(|| m.display().to_string(), |n| n.to_string_lossy().into_owned());
+    let names: Vec<String> = models.iter().map(name).collect();
+    models
+        .iter()
+        .zip(&names)
+        .map(|(m, n)| {
+            if names.iter().filter(|o| *o == n).count() > 1 {
+                m.display().to_string().replace(['/', '\\'], "-").trim_matches('-').to_string()
+            } else {
+                n.clone()
+            }
+        })
+        .collect()
 }
 
 #[allow(clippy::too_many_arguments)]

@@ -35,6 +35,9 @@ pub struct OneShotRow {
     pub expert: Tracking,
     /// The latent model.
     pub latent: Tracking,
+    /// Whether the clip's skill was left out of the latent model's dataset (a held-out clip).
+    #[serde(default)]
+    pub held_out: bool,
 }
 
 impl OneShotRow {
@@ -78,33 +81,114 @@ pub fn one_shot(
     batch: usize,
     seed: u64,
 ) -> Result<Vec<OneShotRow>> {
-    let mut rows = Vec::new();
+    let models = std::slice::from_mut(policy);
+    let mut rows = one_shot_many(models, &[model_path.to_path_buf()], library, specs, episodes, batch, seed)?;
+    Ok(rows.remove(0))
+}
+
+/// [`one_shot`] for several latent models on the same starts: the expert runs once per clip.
+/// One row list per model, in the order given.
+pub fn one_shot_many(
+    policies: &mut [LatentPolicy],
+    model_paths: &[PathBuf],
+    library: &Path,
+    specs: &[PathBuf],
+    episodes: usize,
+    batch: usize,
+    seed: u64,
+) -> Result<Vec<Vec<OneShotRow>>> {
+    let mut rows = vec![Vec::new(); policies.len()];
     for spec in specs {
         let (setup, settings, expert_policy, _) = expert_setup(spec, library)?;
-        policy.check_fits(&setup.model, model_path)?;
+        for (policy, path) in policies.iter().zip(model_paths) {
+            policy.check_fits(&setup.model, path)?;
+        }
         let layout = proprio_layout(&setup)?;
-        let opts =
-            RolloutOptions { k: policy.manifest.k, batch, seed, noise_std: 0.0, budget: Budget::Episodes(episodes) };
         let best = best_imitation_reward(&settings.imitation);
-        let run = |ctrl: &mut dyn Controller| {
+        let run = |ctrl: &mut dyn Controller, k: usize| {
+            let opts = RolloutOptions { k, batch, seed, noise_std: 0.0, budget: Budget::Episodes(episodes) };
             let mut ends = BTreeMap::new();
             rollout(&setup, &settings, &layout, ctrl, &opts, &mut |_| {}, &mut |e| {
                 ends.insert(e.episode, *e);
             });
             ends
         };
-        let expert = run(&mut Expert(expert_policy));
-        let latent = run(policy);
+        // The expert reads no reference features: k only shapes the rollout's bookkeeping.
+        let k = policies.first().map_or(1, |p| p.manifest.k);
+        let expert = summarize(&run(&mut Expert(expert_policy), k), best);
         let name = setup.spec.spec.name.clone();
-        tracing::info!(skill = %name, episodes = expert.len(), "one-shot imitation");
-        rows.push(OneShotRow {
-            skill: name,
-            episodes: expert.len(),
-            expert: summarize(&expert, best),
-            latent: summarize(&latent, best),
-        });
+        for (policy, out) in policies.iter_mut().zip(&mut rows) {
+            let held_out = !policy.manifest.dataset.skills.contains(&name);
+            let k = policy.manifest.k;
+            let ends = run(policy, k);
+            tracing::info!(skill = %name, episodes = ends.len(), held_out, "one-shot imitation");
+            out.push(OneShotRow {
+                skill: name.clone(),
+                episodes: ends.len(),
+                expert,
+                latent: summarize(&ends, best),
+                held_out,
+            });
+        }
     }
     Ok(rows)
+}
+
+/// Means over `rows` of the expert's and the latent model's figures and of their ratio.
+fn means(rows: &[&OneShotRow]) -> [f64; 6] {
+    let n = rows.len().max(1) as f64;
+    let mean = |f: &dyn Fn(&OneShotRow) -> f64| rows.iter().map(|r| f(r)).sum::<f64>() / n;
+    [
+        mean(&|r| r.expert.normalized_length),
+        mean(&|r| r.expert.normalized_return),
+        mean(&|r| r.latent.normalized_length),
+        mean(&|r| r.latent.normalized_return),
+        mean(&|r| r.relative_return()),
+        mean(&|r| r.latent.fall_rate),
+    ]
+}
+
+/// The rows' clips split into the ones the model was trained on and the held-out ones.
+fn split(rows: &[OneShotRow]) -> (Vec<&OneShotRow>, Vec<&OneShotRow>) {
+    rows.iter().partition(|r| !r.held_out)
+}
+
+/// A comparison of several models over the same clips and starts: per clip the latent model's
+/// return as a share of the expert's, then the means over trained and held-out clips and the
+/// latent falls. `models` are (label, weighting, updates, rows).
+pub fn comparison_markdown(models: &[(String, String, usize, Vec<OneShotRow>)]) -> String {
+    let Some((_, _, _, first)) = models.first() else { return String::new() };
+    let clip = |r: &OneShotRow| if r.held_out { format!("{} (held out)", r.skill) } else { r.skill.clone() };
+    let mut s = String::from("| model | weighting | updates |");
+    let mut rule = String::from("|---|---|---:|");
+    for r in first {
+        s.push_str(&format!(" {} |", clip(r)));
+        rule.push_str("---:|");
+    }
+    let any_held_out = first.iter().any(|r| r.held_out);
+    s.push_str(" mean, trained clips |");
+    rule.push_str("---:|");
+    if any_held_out {
+        s.push_str(" mean, held-out clips |");
+        rule.push_str("---:|");
+    }
+    s.push_str(" latent falls |\n");
+    rule.push_str("---:|\n");
+    s.push_str(&rule);
+    for (label, weighting, updates, rows) in models {
+        s.push_str(&format!("| {label} | {weighting} | {updates} |"));
+        for r in rows {
+            s.push_str(&format!(" {:.1} % |", 100.0 * r.relative_return()));
+        }
+        let (trained, held) = split(rows);
+        s.push_str(&format!(" {:.1} % |", 100.0 * means(&trained)[4]));
+        if any_held_out {
+            s.push_str(&format!(" {:.1} % |", 100.0 * means(&held)[4]));
+        }
+        let all: Vec<&OneShotRow> = rows.iter().collect();
+        s.push_str(&format!(" {:.1} % |\n", 100.0 * means(&all)[5]));
+    }
+    s
 }
 
 /// The table as Markdown, with a mean row.
@@ -114,8 +198,9 @@ pub fn markdown(rows: &[OneShotRow]) -> String {
     );
     for r in rows {
         s.push_str(&format!(
-            "| {} | {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.1} % | {:.1} % |\n",
+            "| {}{} | {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.1} % | {:.1} % |\n",
             r.skill,
+            if r.held_out { " (held out)" } else { "" },
             r.episodes,
             r.expert.normalized_length,
             r.expert.normalized_return,
@@ -125,18 +210,23 @@ pub fn markdown(rows: &[OneShotRow]) -> String {
             100.0 * r.latent.fall_rate
         ));
     }
-    if !rows.is_empty() {
-        let n = rows.len() as f64;
-        let mean = |f: &dyn Fn(&OneShotRow) -> f64| rows.iter().map(f).sum::<f64>() / n;
+    let (trained, held) = split(rows);
+    let mut mean_row = |label: &str, rows: &[&OneShotRow]| {
+        if rows.is_empty() {
+            return;
+        }
+        let [el, er, ll, lr, rel, falls] = means(rows);
         s.push_str(&format!(
-            "| mean | | {:.3} | {:.3} | {:.3} | {:.3} | {:.1} % | {:.1} % |\n",
-            mean(&|r| r.expert.normalized_length),
-            mean(&|r| r.expert.normalized_return),
-            mean(&|r| r.latent.normalized_length),
-            mean(&|r| r.latent.normalized_return),
-            100.0 * mean(&|r| r.relative_return()),
-            100.0 * mean(&|r| r.latent.fall_rate)
+            "| {label} | | {el:.3} | {er:.3} | {ll:.3} | {lr:.3} | {:.1} % | {:.1} % |\n",
+            100.0 * rel,
+            100.0 * falls
         ));
+    };
+    if held.is_empty() {
+        mean_row("mean", &trained);
+    } else {
+        mean_row("mean, trained clips", &trained);
+        mean_row("mean, held-out clips", &held);
     }
     s
 }
@@ -144,11 +234,11 @@ pub fn markdown(rows: &[OneShotRow]) -> String {
 /// The table as CSV.
 pub fn csv(rows: &[OneShotRow]) -> String {
     let mut s = String::from(
-        "clip,episodes,expert_length,expert_return,expert_falls,latent_length,latent_return,latent_falls,relative_return,relative_length\n",
+        "clip,episodes,expert_length,expert_return,expert_falls,latent_length,latent_return,latent_falls,relative_return,relative_length,held_out\n",
     );
     for r in rows {
         s.push_str(&format!(
-            "{},{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4}\n",
+            "{},{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{}\n",
             r.skill,
             r.episodes,
             r.expert.normalized_length,
@@ -158,7 +248,8 @@ pub fn csv(rows: &[OneShotRow]) -> String {
             r.latent.normalized_return,
             r.latent.fall_rate,
             r.relative_return(),
-            r.relative_length()
+            r.relative_length(),
+            r.held_out
         ));
     }
     s

@@ -46,7 +46,37 @@ pub enum Weighting {
         /// Largest weight after normalisation.
         max_weight: f32,
     },
+    /// Advantage-weighted regression (Peng et al. 2019): weight `exp(A_t / temperature)` with
+    /// `A_t = G_t − V_t`, `G_t` the discounted imitation return-to-go and `V_t` its mean over the
+    /// dataset's transitions of the same skill at the same reference frame (the clip phase; a
+    /// frame with fewer than [`AWR_MIN_CELL`] transitions takes its skill's mean), normalised to
+    /// mean 1 and capped at `max_weight`. Unlike RWR it does not favour the easy phases of a clip
+    /// (a standing frame earns more than a landing one whatever the action): it favours the
+    /// transitions that did better than the others at the same point of the same clip.
+    Awr {
+        /// Temperature of the exponent.
+        temperature: f32,
+        /// Discount of the return-to-go.
+        gamma: f32,
+        /// Largest weight after normalisation.
+        max_weight: f32,
+    },
 }
+
+impl Weighting {
+    /// A short name for tables: `BC`, `clip-balanced`, `RWR, temperature 1`, `AWR, temperature 1`.
+    pub fn label(&self) -> String {
+        match self {
+            Weighting::Bc => "BC".into(),
+            Weighting::ClipBalanced => "clip-balanced".into(),
+            Weighting::Rwr { temperature, .. } => format!("RWR, temperature {temperature}"),
+            Weighting::Awr { temperature, .. } => format!("AWR, temperature {temperature}"),
+        }
+    }
+}
+
+/// Fewest transitions at one (skill, reference frame) for AWR to use their mean as the baseline.
+pub const AWR_MIN_CELL: usize = 8;
 
 /// Which recorded action the decoder learns.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -135,11 +165,13 @@ impl LatentConfig {
         if !(self.learning_rate > 0.0 && self.learning_rate.is_finite()) {
             return bad(format!("learning_rate must be positive, got {}", self.learning_rate));
         }
-        if let Weighting::Rwr { temperature, gamma, max_weight } = self.weighting
+        if let Weighting::Rwr { temperature, gamma, max_weight } | Weighting::Awr { temperature, gamma, max_weight } =
+            self.weighting
             && !(temperature > 0.0 && (0.0..=1.0).contains(&gamma) && max_weight >= 1.0)
         {
             return bad(format!(
-                "Rwr needs temperature > 0, gamma in [0, 1], max_weight ≥ 1 (got {temperature}, {gamma}, {max_weight})"
+                "{:?} needs temperature > 0, gamma in [0, 1], max_weight ≥ 1 (got {temperature}, {gamma}, {max_weight})",
+                self.weighting
             ));
         }
         Ok(())

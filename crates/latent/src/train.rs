@@ -16,8 +16,8 @@ use repertoire_scenes::obs::LayoutEntry;
 use crate::dataset::Dataset;
 use crate::error::{LatentError, Result, write_atomic};
 use crate::model::{
-    ActionTarget, Batch, DatasetRecord, InputNorm, LatentConfig, LatentManifest, LatentNet, LatentPolicy, LossStats,
-    MODEL_FORMAT, TrainingFigures, Weighting, ar1_prior, column_stats, normalize_into,
+    AWR_MIN_CELL, ActionTarget, Batch, DatasetRecord, InputNorm, LatentConfig, LatentManifest, LatentNet, LatentPolicy,
+    LossStats, MODEL_FORMAT, TrainingFigures, Weighting, ar1_prior, column_stats, normalize_into,
 };
 
 /// Per-transition loss weights of `weighting` for `data` (mean 1).
@@ -35,19 +35,67 @@ pub fn transition_weights(data: &Dataset, weighting: Weighting) -> Vec<f32> {
             data.skill.iter().map(|&s| n as f32 / (used as f32 * count[s as usize] as f32)).collect()
         }
         Weighting::Rwr { temperature, gamma, max_weight } => {
-            let mut g = vec![0.0f64; n];
-            let mut next = 0.0f64;
-            for i in (0..n).rev() {
-                let same = i + 1 < n && data.episode[i + 1] == data.episode[i];
-                next = f64::from(data.reward[i]) + if same { f64::from(gamma) * next } else { 0.0 };
-                g[i] = next;
-            }
+            let g = returns_to_go(data, gamma);
             let top = g.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-            let w: Vec<f64> = g.iter().map(|x| ((x - top) / f64::from(temperature)).exp()).collect();
-            let mean = w.iter().sum::<f64>() / n.max(1) as f64;
-            w.iter().map(|x| ((x / mean.max(1e-300)) as f32).min(max_weight)).collect()
+            exp_weights(g.iter().map(|x| x - top), temperature, max_weight)
+        }
+        Weighting::Awr { temperature, gamma, max_weight } => {
+            let g = returns_to_go(data, gamma);
+            let baseline = phase_baseline(data, &g);
+            let advantage: Vec<f64> = g.iter().zip(&baseline).map(|(g, v)| g - v).collect();
+            // Shifted by the largest advantage (the weights are normalised anyway) so that no
+            // exponent overflows.
+            let top = advantage.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            exp_weights(advantage.iter().map(|a| a - top), temperature, max_weight)
         }
     }
+}
+
+/// The discounted imitation return-to-go of every transition, within its episode.
+fn returns_to_go(data: &Dataset, gamma: f32) -> Vec<f64> {
+    let n = data.len();
+    let mut g = vec![0.0f64; n];
+    let mut next = 0.0f64;
+    for i in (0..n).rev() {
+        let same = i + 1 < n && data.episode[i + 1] == data.episode[i];
+        next = f64::from(data.reward[i]) + if same { f64::from(gamma) * next } else { 0.0 };
+        g[i] = next;
+    }
+    g
+}
+
+/// AWR's value baseline: the mean of `g` over the transitions of the same skill at the same
+/// reference frame, or over the skill's where that frame holds fewer than [`AWR_MIN_CELL`].
+pub fn phase_baseline(data: &Dataset, g: &[f64]) -> Vec<f64> {
+    use std::collections::HashMap;
+    let mut cell: HashMap<(u32, u32), (f64, usize)> = HashMap::new();
+    let mut skill: HashMap<u32, (f64, usize)> = HashMap::new();
+    for ((&k, &f), &g) in data.skill.iter().zip(&data.frame).zip(g) {
+        let c = cell.entry((k, f)).or_default();
+        c.0 += g;
+        c.1 += 1;
+        let s = skill.entry(k).or_default();
+        s.0 += g;
+        s.1 += 1;
+    }
+    (0..data.len())
+        .map(|i| {
+            let (sum, count) = cell[&(data.skill[i], data.frame[i])];
+            if count >= AWR_MIN_CELL {
+                sum / count as f64
+            } else {
+                let (sum, count) = skill[&data.skill[i]];
+                sum / count as f64
+            }
+        })
+        .collect()
+}
+
+/// `exp(x / temperature)` of each (non-positive) `x`, normalised to mean 1 and capped at `max_weight`.
+fn exp_weights(x: impl ExactSizeIterator<Item = f64>, temperature: f32, max_weight: f32) -> Vec<f32> {
+    let w: Vec<f64> = x.map(|x| (x / f64::from(temperature)).exp()).collect();
+    let mean = w.iter().sum::<f64>() / w.len().max(1) as f64;
+    w.iter().map(|x| ((x / mean.max(1e-300)) as f32).min(max_weight)).collect()
 }
 
 /// A training run in progress: the network, Adam, the normalised data and the sampler.

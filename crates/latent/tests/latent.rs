@@ -9,9 +9,9 @@ use rand::{Rng, SeedableRng};
 use repertoire_latent::LatentError;
 use repertoire_latent::dataset::{CollectOptions, Dataset, collect};
 use repertoire_latent::eval::one_shot;
-use repertoire_latent::model::{LatentConfig, LatentPolicy, Weighting, kl_ar1};
+use repertoire_latent::model::{AWR_MIN_CELL, LatentConfig, LatentPolicy, Weighting, kl_ar1};
 use repertoire_latent::reference::{ROOT_VALUES, reference_features, reference_size};
-use repertoire_latent::train::{TrainOptions, Trainer, train, transition_weights};
+use repertoire_latent::train::{TrainOptions, Trainer, phase_baseline, train, transition_weights};
 use repertoire_skill::imitation::ImitationTask;
 use repertoire_skill::{SkillSetup, SpecFile};
 
@@ -239,6 +239,62 @@ fn weights_bc_clip_balanced_and_rwr() {
     let spread =
         rwr.iter().copied().fold(f32::NEG_INFINITY, f32::max) / rwr.iter().copied().fold(f32::INFINITY, f32::min);
     assert!(spread > 1.5, "RWR weights barely differ ({spread})");
+}
+
+/// AWR weighs a transition by how much better it did than the others at the same point of the
+/// same clip, where RWR weighs it by the return itself: a reward that depends only on the clip
+/// phase spreads RWR's weights and leaves AWR's flat, while the one episode that earned more
+/// than its peers at every phase is the one AWR favours.
+#[test]
+fn awr_weighs_the_return_against_the_same_clip_phase() {
+    let (_, tiny) = tiny_dataset();
+    let mut data = tiny.clone();
+    let n = data.len();
+    assert!(n >= 400, "{n} transitions");
+    // Episodes of 10 steps, alternating skills, each starting at frame 0; the reward grows with
+    // the frame, and episode 0 earns 0.3 more at every step.
+    for i in 0..n {
+        let (episode, step) = (i / 10, i % 10);
+        data.episode[i] = episode as u32;
+        data.skill[i] = (episode % 2) as u32;
+        data.step[i] = step as u32;
+        data.frame[i] = step as u32;
+        data.reward[i] = step as f32 / 10.0 + if episode == 0 { 0.3 } else { 0.0 };
+    }
+    // The last transition alone at its frame: its baseline is its skill's mean.
+    data.frame[n - 1] = 999;
+    let awr = |max_weight| transition_weights(&data, Weighting::Awr { temperature: 0.5, gamma: 0.95, max_weight });
+    let uncapped = awr(f32::MAX);
+    let mean_of = |w: &[f32]| w.iter().map(|&x| f64::from(x)).sum::<f64>() / w.len() as f64;
+    assert!((mean_of(&uncapped) - 1.0).abs() < 1e-4, "uncapped mean AWR weight {}", mean_of(&uncapped));
+    for (&w, &u) in awr(1.5).iter().zip(&uncapped) {
+        assert_eq!(w, u.min(1.5));
+    }
+    let rwr = transition_weights(&data, Weighting::Rwr { temperature: 0.5, gamma: 0.95, max_weight: f32::MAX });
+    let spread = |w: &[f32], pick: &dyn Fn(usize) -> bool| {
+        let v: Vec<f32> = (0..n).filter(|&i| pick(i)).map(|i| w[i]).collect();
+        v.iter().copied().fold(f32::NEG_INFINITY, f32::max) / v.iter().copied().fold(f32::INFINITY, f32::min)
+    };
+    // Skill 1 (odd episodes, none bumped, none alone at a frame): every phase the same to AWR.
+    let skill1 = |i: usize| data.skill[i] == 1 && i != n - 1;
+    assert!(spread(&rwr, &skill1) > 2.0, "RWR spread {} over a phase-only reward", spread(&rwr, &skill1));
+    assert!(spread(&uncapped, &skill1) < 1.0 + 1e-4, "AWR spread {}", spread(&uncapped, &skill1));
+    // Episode 0 outweighs every other transition of its skill.
+    let best_other = (10..n).filter(|&i| data.skill[i] == 0).map(|i| uncapped[i]).fold(0.0f32, f32::max);
+    assert!(uncapped[..10].iter().all(|&w| w > best_other), "{:?} against {best_other}", &uncapped[..10]);
+
+    // The baseline itself: a cell's mean, or the skill's for a cell under AWR_MIN_CELL.
+    assert!((10..n).filter(|&i| data.skill[i] == 0 && data.frame[i] == 3).count() + 1 >= AWR_MIN_CELL);
+    let g: Vec<f64> = (0..n).map(|i| i as f64).collect();
+    let v = phase_baseline(&data, &g);
+    let mean = |pick: &dyn Fn(usize) -> bool| {
+        let idx: Vec<usize> = (0..n).filter(|&i| pick(i)).collect();
+        idx.iter().map(|&i| g[i]).sum::<f64>() / idx.len() as f64
+    };
+    let cell = mean(&|i| data.skill[i] == 0 && data.frame[i] == 3);
+    assert!((v[3] - cell).abs() < 1e-9, "{} against {cell}", v[3]);
+    let skill = mean(&|i| data.skill[i] == data.skill[n - 1]);
+    assert!((v[n - 1] - skill).abs() < 1e-9, "{} against {skill}", v[n - 1]);
 }
 
 #[test]
