@@ -64,12 +64,20 @@ fn collect_train_and_eval_a_latent_model() {
     let out = repertoire(&[&["latent", "eval"][..], &pair].concat());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("--out"), "{err}");
-    let text = ok(&repertoire(&[&["latent", "eval"][..], &pair, &["--out", compare.to_str().unwrap()]].concat()));
+    // A real CMU walk no expert was trained on, tracked by each latent model alone.
+    let clip = ["--clip", "mocap/cmu-subject16-30fps/16_15_walk.bvh"];
+    let text =
+        ok(&repertoire(&[&["latent", "eval"][..], &pair, &clip, &["--out", compare.to_str().unwrap()]].concat()));
     assert!(text.contains("| model | BC | 60 |") && text.contains("| awr | AWR, temperature 1 | 60 |"), "{text}");
+    assert!(text.contains("| model | 16_15_walk.bvh | 2 |") && text.contains("| awr | 16_15_walk.bvh | 2 |"), "{text}");
+    let out = repertoire(&["latent", "eval", model.to_str().unwrap(), "--skills", "walk", "--clip", "no-such.bvh"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("no-such.bvh"), "{err}");
     assert!(text.contains("turn_left (held out)") && text.contains("mean, held-out clips"), "{text}");
     for name in ["model", "awr"] {
         let table = std::fs::read_to_string(compare.join(name).join("one_shot.md")).unwrap();
         assert!(table.contains("| turn_left (held out) | 2 |") && table.contains("| mean, trained clips |"), "{table}");
+        assert!(table.contains(&format!("| {name} | 16_15_walk.bvh | 2 |")), "{table}");
     }
     assert!(std::fs::read_to_string(compare.join("comparison.md")).unwrap().contains("the same starts"));
 

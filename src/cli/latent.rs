@@ -6,7 +6,9 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, bail};
 use clap::{Subcommand, ValueEnum};
 use repertoire_latent::dataset::{CollectOptions, Dataset, collect};
-use repertoire_latent::eval::{OneShotRow, comparison_markdown, csv, markdown, one_shot_many};
+use repertoire_latent::eval::{
+    ClipRow, OneShotRow, clips_markdown, comparison_markdown, csv, markdown, one_shot_many, track_clips,
+};
 use repertoire_latent::model::{LatentConfig, LatentPolicy, Weighting};
 use repertoire_latent::train::{TrainOptions, train};
 use repertoire_skill::train::default_run_dir;
@@ -170,6 +172,13 @@ pub struct EvalArgs {
     /// Seed of the start states (the same for both controllers).
     #[arg(long, default_value_t = 12345)]
     pub seed: u64,
+    /// A clip no expert was trained on (any clip file a skill spec takes), tracked by the latent
+    /// model alone: its normalised length and return (repeatable).
+    #[arg(long = "clip")]
+    pub clips: Vec<PathBuf>,
+    /// The skill spec whose body, rates and imitation terms a `--clip` is tracked with.
+    #[arg(long, default_value = "specs/walk.ron")]
+    pub clip_spec: PathBuf,
     /// Output folder (default: MODEL/eval).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -315,12 +324,31 @@ fn train_cmd(
 
 /// `latent eval`.
 fn eval_cmd(
-    EvalArgs { models, experts: Experts { skills, specs, library }, episodes, batch, seed, out }: EvalArgs,
+    EvalArgs { models, experts: Experts { skills, specs, library }, episodes, batch, seed, clips, clip_spec, out }: EvalArgs,
     command: String,
 ) -> Result<()> {
     let spec_files = spec_paths(&specs, &skills)?;
     let mut policies = models.iter().map(|m| LatentPolicy::load(m)).collect::<std::result::Result<Vec<_>, _>>()?;
     let results = one_shot_many(&mut policies, &models, &library, &spec_files, episodes, batch, seed)?;
+    let tracked = if clips.is_empty() {
+        vec![Vec::new(); models.len()]
+    } else {
+        track_clips(&mut policies, &models, &clip_spec, &library, &clips, episodes, batch, seed)?
+    };
+    let labels = model_labels(&models);
+    let clip_table = |pick: &dyn Fn(usize) -> bool| {
+        let chosen: Vec<(String, Vec<ClipRow>)> =
+            (0..models.len()).filter(|&i| pick(i)).map(|i| (labels[i].clone(), tracked[i].clone())).collect();
+        if clips.is_empty() {
+            String::new()
+        } else {
+            format!(
+                "\nClips no expert was trained on, tracked by the latent model alone in the environment of `{}`:\n\n{}",
+                clip_spec.display(),
+                clips_markdown(&chosen)
+            )
+        }
+    };
     let about = |what: &str| {
         format!(
             "One-shot imitation through {what} ({episodes} episodes per clip from random reference frames, start \
@@ -329,9 +357,9 @@ fn eval_cmd(
              Command: `{command}`\n\n"
         )
     };
-    let write_table = |dir: &Path, model: &Path, rows: &[OneShotRow]| -> Result<()> {
+    let write_table = |dir: &Path, model: &Path, rows: &[OneShotRow], i: usize| -> Result<()> {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-        let md = markdown(rows);
+        let md = format!("{}{}", markdown(rows), clip_table(&|j| j == i));
         let page = format!("{}{md}", about(&model.display().to_string()));
         repertoire_latent::error::write_atomic(&dir.join("one_shot.md"), page.as_bytes())?;
         repertoire_latent::error::write_atomic(&dir.join("one_shot.csv"), csv(rows).as_bytes())?;
@@ -341,20 +369,21 @@ fn eval_cmd(
         let rows = &results[0];
         let dir = if model.is_dir() { model.clone() } else { model.parent().unwrap_or(Path::new(".")).to_path_buf() };
         let out = out.unwrap_or_else(|| dir.join("eval"));
-        write_table(&out, model, rows)?;
-        print!("{}", markdown(rows));
+        write_table(&out, model, rows, 0)?;
+        print!("{}{}", markdown(rows), clip_table(&|_| true));
         println!("written to {}", out.join("one_shot.md").display());
         return Ok(());
     }
     let Some(out) = out else { bail!("several models are compared into one folder: name it with --out") };
-    let labels = model_labels(&models);
     let mut compared = Vec::new();
-    for ((model, label), (rows, policy)) in models.iter().zip(&labels).zip(results.into_iter().zip(&policies)) {
-        write_table(&out.join(label), model, &rows)?;
+    for (i, ((model, label), (rows, policy))) in
+        models.iter().zip(&labels).zip(results.into_iter().zip(&policies)).enumerate()
+    {
+        write_table(&out.join(label), model, &rows, i)?;
         let weighting = policy.manifest.config.weighting.label();
         compared.push((label.clone(), weighting, policy.manifest.training.updates, rows));
     }
-    let table = comparison_markdown(&compared);
+    let table = format!("{}{}", comparison_markdown(&compared), clip_table(&|_| true));
     let page = format!(
         "{}The latent model's return as a share of the expert's, per clip; each model's full table is in \
          the folder of its name.\n\n{table}",

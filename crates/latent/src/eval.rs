@@ -8,6 +8,10 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+use repertoire_skill::imitation::TaskSettings;
+use repertoire_skill::spec::{ClipRef, Init};
+use repertoire_skill::{SkillSetup, SpecFile};
+
 use crate::dataset::{expert_setup, proprio_layout};
 use crate::error::Result;
 use crate::model::LatentPolicy;
@@ -132,6 +136,98 @@ pub fn one_shot_many(
         }
     }
     Ok(rows)
+}
+
+/// A clip tracked by a latent model alone: no expert was trained on it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ClipRow {
+    /// The clip (its file name).
+    pub clip: String,
+    /// Episodes.
+    pub episodes: usize,
+    /// The latent model.
+    pub latent: Tracking,
+}
+
+/// Tracks each of `clips` (any clip file a skill spec takes: BVH, ASF/AMC, DeepMimic, keyframes,
+/// joint positions; retargeted by the best-fitting shipped map) through each latent model from
+/// `episodes` random reference frames, in the environment of the skill spec `template` (its body,
+/// rates and imitation terms; its clip replaced, neither looped nor mirrored nor cut). No expert
+/// exists for such a clip, so the figures are the latent model's own normalised length and return
+/// (MoCapAct's measures before the division by the expert's). One row list per model.
+#[allow(clippy::too_many_arguments)]
+pub fn track_clips(
+    policies: &mut [LatentPolicy],
+    model_paths: &[PathBuf],
+    template: &Path,
+    library: &Path,
+    clips: &[PathBuf],
+    episodes: usize,
+    batch: usize,
+    seed: u64,
+) -> Result<Vec<Vec<ClipRow>>> {
+    let mut rows = vec![Vec::new(); policies.len()];
+    for clip in clips {
+        let mut spec = SpecFile::load(template)?;
+        let file = std::path::absolute(clip).unwrap_or_else(|_| clip.clone());
+        spec.spec.clip = ClipRef {
+            file: file.display().to_string(),
+            map: None,
+            cut_s: None,
+            mirror: false,
+            looping: false,
+            hold_s: 0.0,
+            lead_s: 0.0,
+            seat_lift_m: 0.0,
+            pose_deg: BTreeMap::new(),
+        };
+        spec.spec.init = Init::Reference;
+        let name = clip.file_name().map_or_else(|| clip.display().to_string(), |n| n.to_string_lossy().into_owned());
+        spec.spec.name = name.clone();
+        let setup = SkillSetup::new(spec, library)?;
+        let mut settings: TaskSettings = (*setup.settings).clone();
+        settings.init = Init::Reference;
+        let settings = std::sync::Arc::new(settings);
+        let layout = proprio_layout(&setup)?;
+        let best = best_imitation_reward(&settings.imitation);
+        for ((policy, path), out) in policies.iter_mut().zip(model_paths).zip(&mut rows) {
+            policy.check_fits(&setup.model, path)?;
+            let opts = RolloutOptions {
+                k: policy.manifest.k,
+                batch,
+                seed,
+                noise_std: 0.0,
+                budget: Budget::Episodes(episodes),
+            };
+            let mut ends = BTreeMap::new();
+            rollout(&setup, &settings, &layout, policy, &opts, &mut |_| {}, &mut |e| {
+                ends.insert(e.episode, *e);
+            });
+            tracing::info!(clip = %name, episodes = ends.len(), "clip tracked through the latent model");
+            out.push(ClipRow { clip: name.clone(), episodes: ends.len(), latent: summarize(&ends, best) });
+        }
+    }
+    Ok(rows)
+}
+
+/// The clips tracked without an expert, one row per model and clip.
+pub fn clips_markdown(models: &[(String, Vec<ClipRow>)]) -> String {
+    let mut s = String::from(
+        "| model | clip (no expert) | episodes | latent length | latent return | latent falls |\n|---|---|---:|---:|---:|---:|\n",
+    );
+    for (label, rows) in models {
+        for r in rows {
+            s.push_str(&format!(
+                "| {label} | {} | {} | {:.3} | {:.3} | {:.1} % |\n",
+                r.clip,
+                r.episodes,
+                r.latent.normalized_length,
+                r.latent.normalized_return,
+                100.0 * r.latent.fall_rate
+            ));
+        }
+    }
+    s
 }
 
 /// Means over `rows` of the expert's and the latent model's figures and of their ratio.
