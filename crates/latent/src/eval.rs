@@ -5,9 +5,11 @@
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use serde::{Deserialize, Serialize};
 
+use repertoire_scenes::ObservationLayout;
 use repertoire_skill::imitation::TaskSettings;
 use repertoire_skill::spec::{ClipRef, Init};
 use repertoire_skill::{SkillSetup, SpecFile};
@@ -65,6 +67,40 @@ fn summarize(ends: &BTreeMap<u64, EpisodeEnd>, best: f64) -> Tracking {
     }
 }
 
+/// The random reference frames (seeded) a clip is tracked from, the same for every controller.
+#[derive(Debug, Clone, Copy)]
+struct Starts {
+    episodes: usize,
+    batch: usize,
+    seed: u64,
+}
+
+impl Starts {
+    /// `ctrl` tracking `setup`'s clip (reading `k` reference frames ahead): the episodes run and
+    /// their figures.
+    fn track(
+        self,
+        setup: &SkillSetup,
+        settings: &Arc<TaskSettings>,
+        layout: &Arc<ObservationLayout>,
+        ctrl: &mut dyn Controller,
+        k: usize,
+    ) -> (usize, Tracking) {
+        let opts = RolloutOptions {
+            k,
+            batch: self.batch,
+            seed: self.seed,
+            noise_std: 0.0,
+            budget: Budget::Episodes(self.episodes),
+        };
+        let mut ends = BTreeMap::new();
+        rollout(setup, settings, layout, ctrl, &opts, &mut |_| {}, &mut |e| {
+            ends.insert(e.episode, *e);
+        });
+        (ends.len(), summarize(&ends, best_imitation_reward(&settings.imitation)))
+    }
+}
+
 struct Expert(repertoire_learn::acting::ActingPolicy);
 
 impl Controller for Expert {
@@ -108,31 +144,17 @@ pub fn one_shot_many(
             policy.check_fits(&setup.model, path)?;
         }
         let layout = proprio_layout(&setup)?;
-        let best = best_imitation_reward(&settings.imitation);
-        let run = |ctrl: &mut dyn Controller, k: usize| {
-            let opts = RolloutOptions { k, batch, seed, noise_std: 0.0, budget: Budget::Episodes(episodes) };
-            let mut ends = BTreeMap::new();
-            rollout(&setup, &settings, &layout, ctrl, &opts, &mut |_| {}, &mut |e| {
-                ends.insert(e.episode, *e);
-            });
-            ends
-        };
+        let starts = Starts { episodes, batch, seed };
         // The expert reads no reference features: k only shapes the rollout's bookkeeping.
         let k = policies.first().map_or(1, |p| p.manifest.k);
-        let expert = summarize(&run(&mut Expert(expert_policy), k), best);
+        let (_, expert) = starts.track(&setup, &settings, &layout, &mut Expert(expert_policy), k);
         let name = setup.spec.spec.name.clone();
         for (policy, out) in policies.iter_mut().zip(&mut rows) {
             let held_out = !policy.manifest.dataset.skills.contains(&name);
             let k = policy.manifest.k;
-            let ends = run(policy, k);
-            tracing::info!(skill = %name, episodes = ends.len(), held_out, "one-shot imitation");
-            out.push(OneShotRow {
-                skill: name.clone(),
-                episodes: ends.len(),
-                expert,
-                latent: summarize(&ends, best),
-                held_out,
-            });
+            let (episodes, latent) = starts.track(&setup, &settings, &layout, policy, k);
+            tracing::info!(skill = %name, episodes, held_out, "one-shot imitation");
+            out.push(OneShotRow { skill: name.clone(), episodes, expert, latent, held_out });
         }
     }
     Ok(rows)
@@ -187,24 +209,15 @@ pub fn track_clips(
         let setup = SkillSetup::new(spec, library)?;
         let mut settings: TaskSettings = (*setup.settings).clone();
         settings.init = Init::Reference;
-        let settings = std::sync::Arc::new(settings);
+        let settings = Arc::new(settings);
         let layout = proprio_layout(&setup)?;
-        let best = best_imitation_reward(&settings.imitation);
+        let starts = Starts { episodes, batch, seed };
         for ((policy, path), out) in policies.iter_mut().zip(model_paths).zip(&mut rows) {
             policy.check_fits(&setup.model, path)?;
-            let opts = RolloutOptions {
-                k: policy.manifest.k,
-                batch,
-                seed,
-                noise_std: 0.0,
-                budget: Budget::Episodes(episodes),
-            };
-            let mut ends = BTreeMap::new();
-            rollout(&setup, &settings, &layout, policy, &opts, &mut |_| {}, &mut |e| {
-                ends.insert(e.episode, *e);
-            });
-            tracing::info!(clip = %name, episodes = ends.len(), "clip tracked through the latent model");
-            out.push(ClipRow { clip: name.clone(), episodes: ends.len(), latent: summarize(&ends, best) });
+            let k = policy.manifest.k;
+            let (episodes, latent) = starts.track(&setup, &settings, &layout, policy, k);
+            tracing::info!(clip = %name, episodes, "clip tracked through the latent model");
+            out.push(ClipRow { clip: name.clone(), episodes, latent });
         }
     }
     Ok(rows)
