@@ -1,6 +1,7 @@
 //! Third-party bodies loaded as users bring them, their files untouched: Gymnasium's MuJoCo
 //! humanoid (fetched from its wheel by scripts/setup.sh into third_party/bodies/, its map in
-//! bodies/), and a body written without a free joint.
+//! bodies/) holding its pose under the PD and standing under its committed balance policy, and a
+//! body written without a free joint.
 
 mod common;
 
@@ -54,6 +55,19 @@ fn gymnasiums_humanoid_loads_as_it_ships_and_holds_its_pose_under_the_pd() {
     }
     assert!((world.root_height() - start).abs() < 0.02, "{start:.3} → {:.3} m", world.root_height());
     assert!(!world.has_fallen());
+}
+
+/// The held pose tips over (above); a balance policy trained on the body holds it: the committed
+/// stand (`bodies/library-gymnasium/stand`, made by `recipes/bodies.ron`'s `gymnasium-stand`
+/// stage) over 20 trials of 6 s (the 3 s standing clip, then its last frame held 3 s) from the
+/// standing pose under the software PD: none falls, every one lasts to its end.
+#[test]
+fn gymnasiums_humanoid_stands_6_s_under_its_committed_balance_policy() {
+    let library = std::path::Path::new("bodies/library-gymnasium");
+    assert!(library.join("stand/policy.safetensors").exists(), "the committed stand is missing");
+    let args = ["skill", "eval", "specs/gymnasium/stand.ron", "--library", "bodies/library-gymnasium"];
+    let text = common::ok(&common::repertoire(&[&args[..], &["--trials", "20", "--no-pool"]].concat()));
+    assert!(text.contains("| stand | clip start | 20 | 100.0% | 0.0% | 1.000 |"), "{text}");
 }
 
 #[test]
