@@ -327,6 +327,10 @@ fn eval_cmd(
     EvalArgs { models, experts: Experts { skills, specs, library }, episodes, batch, seed, clips, clip_spec, out }: EvalArgs,
     command: String,
 ) -> Result<()> {
+    if models.len() > 1 && out.is_none() {
+        // Before any rollout: the comparison has nowhere to go.
+        bail!("several models are compared into one folder: name it with --out");
+    }
     let spec_files = spec_paths(&specs, &skills)?;
     let mut policies = models.iter().map(|m| LatentPolicy::load(m)).collect::<std::result::Result<Vec<_>, _>>()?;
     let results = one_shot_many(&mut policies, &models, &library, &spec_files, episodes, batch, seed)?;
