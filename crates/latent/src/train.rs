@@ -35,18 +35,13 @@ pub fn transition_weights(data: &Dataset, weighting: Weighting) -> Vec<f32> {
             data.skill.iter().map(|&s| n as f32 / (used as f32 * count[s as usize] as f32)).collect()
         }
         Weighting::Rwr { temperature, gamma, max_weight } => {
-            let g = returns_to_go(data, gamma);
-            let top = g.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-            exp_weights(g.iter().map(|x| x - top), temperature, max_weight)
+            exp_weights(&returns_to_go(data, gamma), temperature, max_weight)
         }
         Weighting::Awr { temperature, gamma, max_weight } => {
             let g = returns_to_go(data, gamma);
             let baseline = phase_baseline(data, &g);
             let advantage: Vec<f64> = g.iter().zip(&baseline).map(|(g, v)| g - v).collect();
-            // Shifted by the largest advantage (the weights are normalised anyway) so that no
-            // exponent overflows.
-            let top = advantage.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-            exp_weights(advantage.iter().map(|a| a - top), temperature, max_weight)
+            exp_weights(&advantage, temperature, max_weight)
         }
     }
 }
@@ -91,9 +86,11 @@ pub fn phase_baseline(data: &Dataset, g: &[f64]) -> Vec<f64> {
         .collect()
 }
 
-/// `exp(x / temperature)` of each (non-positive) `x`, normalised to mean 1 and capped at `max_weight`.
-fn exp_weights(x: impl ExactSizeIterator<Item = f64>, temperature: f32, max_weight: f32) -> Vec<f32> {
-    let w: Vec<f64> = x.map(|x| (x / f64::from(temperature)).exp()).collect();
+/// `exp(x / temperature)` of each `x`, normalised to mean 1 and capped at `max_weight`. The
+/// exponents are shifted by the largest `x` (the normalisation cancels it) so that none overflows.
+fn exp_weights(x: &[f64], temperature: f32, max_weight: f32) -> Vec<f32> {
+    let top = x.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let w: Vec<f64> = x.iter().map(|x| ((x - top) / f64::from(temperature)).exp()).collect();
     let mean = w.iter().sum::<f64>() / w.len().max(1) as f64;
     w.iter().map(|x| ((x / mean.max(1e-300)) as f32).min(max_weight)).collect()
 }
